@@ -1,0 +1,19 @@
+"""User-facing errors.
+
+Anything raised as :class:`NrmlcError` is a problem with the user's input
+(a file, a folder, a parameter). The CLI prints it as a single line and
+exits non-zero; tracebacks are reserved for bugs (or ``--debug``).
+"""
+from __future__ import annotations
+
+
+class NrmlcError(Exception):
+    """Base class: a one-line message that names the file or parameter."""
+
+
+class DataError(NrmlcError):
+    """A sequence folder, image or annotation file is missing or malformed."""
+
+
+class ParameterError(NrmlcError, ValueError):
+    """A tracker or CLI parameter is out of range or malformed."""
