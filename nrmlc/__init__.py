@@ -1,0 +1,17 @@
+"""nrmlc: Visual Tracking via Nonnegative Regularization Multiple Locality Coding.
+
+``from nrmlc import NRMLCTracker`` gives the tracker (got10k-style ``init`` /
+``update``); :mod:`nrmlc.data`, :mod:`nrmlc.metrics` and :mod:`nrmlc.geometry`
+are usable on their own.
+"""
+__version__ = "0.1.0"
+
+
+def __getattr__(name):
+    # Lazy, so that `python -m nrmlc evaluate` and the data tools do not pay for
+    # compiling the tracker's kernels.
+    if name in ("NRMLCTracker", "TrackerParams"):
+        from nrmlc import tracker
+
+        return getattr(tracker, name)
+    raise AttributeError(f"module 'nrmlc' has no attribute {name!r}")

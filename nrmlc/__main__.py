@@ -1,0 +1,5 @@
+import sys
+
+from nrmlc.cli import main
+
+sys.exit(main())

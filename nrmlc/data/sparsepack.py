@@ -1,0 +1,147 @@
+"""Reading the "sparse-tracker pack" ground-truth layout.
+
+Some sequences (Caviar1, Occlusion1, Occlusion2) come from the sparse
+tracking benchmarks packed as::
+
+    Folder/
+        datainfo.txt      width, height, n_frames (one per line or on one line)
+        <name>_gt.mat     frameIndex, gtCornersAll (and gtCenterAll, unused)
+        img/0001.jpg ...
+
+``frameIndex`` holds the 1-based indices of the annotated keyframes and
+``gtCornersAll`` a 1xK cell of 2x5 corner arrays (TL, BL, BR, TR, TL; row 0
+is x, row 1 is y, MATLAB 1-based pixel coordinates). The mat file name does
+not always follow the folder (Occlusion2 ships ``faceocc2_gt.mat``), so the
+file is found by the ``*_gt.mat`` pattern.
+
+A keyframe box is the axis-aligned bounding box of its corners, which is
+how the OTB ``groundtruth_rect.txt`` files of these sequences were derived;
+frames without a keyframe are unannotated (NaN rows).
+"""
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import numpy as np
+
+from nrmlc.errors import DataError
+
+DATAINFO_NAME = "datainfo.txt"
+GROUNDTRUTH_MAT_PATTERN = "*_gt.mat"
+
+
+def read_datainfo(folder: str | os.PathLike) -> tuple[int, int, int]:
+    """Read ``datainfo.txt`` of a sparse-tracker pack.
+
+    Parameters
+    ----------
+    folder : the sequence folder.
+
+    Returns
+    -------
+    width, height, n_frames : int
+    """
+    path = Path(folder) / DATAINFO_NAME
+    if not path.is_file():
+        raise DataError(f"{path}: datainfo file not found")
+    fields = path.read_text(encoding="utf-8", errors="replace").split()
+    try:
+        values = [int(float(f)) for f in fields]
+    except ValueError:
+        raise DataError(f"{path}: expected 3 integers (width height n_frames), got {fields}") from None
+    if len(values) != 3 or min(values) <= 0:
+        raise DataError(f"{path}: expected 3 positive integers (width height n_frames), got {fields}")
+    width, height, n_frames = values
+    return width, height, n_frames
+
+
+def find_groundtruth_mat(folder: str | os.PathLike) -> Path | None:
+    """Return the single ``*_gt.mat`` file of ``folder``, or None if there is none.
+
+    Raises
+    ------
+    DataError
+        If several ``*_gt.mat`` files make the choice ambiguous.
+    """
+    matches = sorted(Path(folder).glob(GROUNDTRUTH_MAT_PATTERN))
+    if len(matches) > 1:
+        names = ", ".join(m.name for m in matches)
+        raise DataError(f"{folder}: several ground-truth mat files ({names}); keep one")
+    return matches[0] if matches else None
+
+
+def is_sparsepack(folder: str | os.PathLike) -> bool:
+    """True when ``folder`` has a ``datainfo.txt`` and a ``*_gt.mat`` file."""
+    folder = Path(folder)
+    return (folder / DATAINFO_NAME).is_file() and any(folder.glob(GROUNDTRUTH_MAT_PATTERN))
+
+
+def corners_to_box(corners: np.ndarray) -> np.ndarray:
+    """Axis-aligned bounding box of a polygon.
+
+    Parameters
+    ----------
+    corners : (2, m) array; row 0 holds x, row 1 holds y (1-based coordinates).
+
+    Returns
+    -------
+    box : (4,) float64 ``x, y, w, h`` (1-based, like the corners).
+    """
+    xs, ys = np.asarray(corners, dtype=np.float64)
+    return np.array([xs.min(), ys.min(), xs.max() - xs.min(), ys.max() - ys.min()])
+
+
+def read_sparsepack_groundtruth(folder: str | os.PathLike) -> np.ndarray:
+    """Read the keyframe ground truth of a sparse-tracker pack.
+
+    Parameters
+    ----------
+    folder : sequence folder holding ``datainfo.txt`` and one ``*_gt.mat``.
+
+    Returns
+    -------
+    boxes : (n_frames, 4) float64
+        1-based OTB ``x, y, w, h`` boxes, with ``n_frames`` from
+        ``datainfo.txt``; NaN rows for frames that are not keyframes.
+
+    Raises
+    ------
+    DataError
+        On a missing/ambiguous/unreadable mat file, missing variables, a
+        keyframe index outside ``1..n_frames`` or a malformed corner array.
+    """
+    import scipy.io  # deferred: scipy.io is slow to import and rarely needed
+
+    _, _, n_frames = read_datainfo(folder)
+    mat_path = find_groundtruth_mat(folder)
+    if mat_path is None:
+        raise DataError(f"{folder}: no {GROUNDTRUTH_MAT_PATTERN} ground-truth file")
+    try:
+        contents = scipy.io.loadmat(str(mat_path))
+    except Exception as exc:  # scipy raises several unrelated types on bad files
+        raise DataError(f"{mat_path}: cannot read mat file ({exc})") from None
+    for variable in ("frameIndex", "gtCornersAll"):
+        if variable not in contents:
+            raise DataError(f"{mat_path}: variable {variable!r} not found")
+    frame_indices = np.asarray(contents["frameIndex"]).ravel()
+    corner_cells = np.asarray(contents["gtCornersAll"], dtype=object).ravel()
+    if len(frame_indices) != len(corner_cells):
+        raise DataError(
+            f"{mat_path}: frameIndex has {len(frame_indices)} entries but "
+            f"gtCornersAll has {len(corner_cells)}"
+        )
+
+    boxes = np.full((n_frames, 4), np.nan)
+    for frame_index, corners in zip(frame_indices, corner_cells):
+        frame_index = int(frame_index)
+        if not 1 <= frame_index <= n_frames:
+            raise DataError(f"{mat_path}: keyframe {frame_index} outside 1..{n_frames}")
+        corners = np.asarray(corners, dtype=np.float64)
+        if corners.ndim != 2 or corners.shape[0] != 2 or corners.shape[1] < 3:
+            raise DataError(
+                f"{mat_path}: keyframe {frame_index}: corners must be a 2 x m array, got shape {corners.shape}"
+            )
+        if np.isfinite(corners).all():
+            boxes[frame_index - 1] = corners_to_box(corners)
+    return boxes

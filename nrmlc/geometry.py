@@ -1,0 +1,162 @@
+"""Affine target state, in the convention of the IVT / L1APG / SCM trackers.
+
+The state of a target is the 6-vector ``[cx, cy, scale, rotation, aspect, skew]``:
+
+- ``cx, cy``: centre in 0-based pixel coordinates (pixel centres at integers);
+- the 2x2 part of the warp is ``A = scale * R(rotation) @ R(-skew) @ diag(1, aspect) @ R(skew)``
+  with ``R(t)`` the counter-clockwise rotation by ``t`` radians;
+- A maps the centred template grid (a ``PATCH_SIZE`` x ``PATCH_SIZE`` grid whose
+  sample ``(row i, column j)`` sits at ``u = j - (P-1)/2, v = i - (P-1)/2``) into the
+  image: ``[x, y] = A @ [u, v] + [cx, cy]``.
+
+So at initialisation from a box of size w x h, ``scale = w / P`` and ``aspect = h / w``
+(for P = 32: ``scale = w/32``), and rotation = skew = 0.
+
+Boxes are OTB boxes ``(x, y, w, h)``, 1-based (pixel (1, 1) is top-left), and a box's
+0-based centre is ``(x - 1 + w/2, y - 1 + h/2)`` (IVT's ``x + w/2`` in MATLAB's 1-based
+coordinates). A state's box is the axis-aligned bounding box of the template's corners
+``(+-P/2, +-P/2)``: exact for rotation = skew = 0, enclosing otherwise.
+
+Canonical states. ``affine_to_state`` returns the unique state with ``scale > 0``,
+``aspect > 0``, ``rotation`` in (-pi, pi], ``skew`` in (-pi/4, pi/4] (and skew = 0 when
+aspect = 1). Every matrix with positive determinant has one; ``state -> matrix -> state``
+is the identity on canonical states, ``matrix -> state -> matrix`` everywhere.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from nrmlc.config import PATCH_SIZE
+from nrmlc.errors import ParameterError
+
+STATE_FIELDS = ("cx", "cy", "scale", "rotation", "aspect", "skew")
+
+
+def _rotation(angle: np.ndarray) -> np.ndarray:
+    c, s = np.cos(angle), np.sin(angle)
+    return np.stack([np.stack([c, -s], -1), np.stack([s, c], -1)], -2)
+
+
+def state_to_affine(states: np.ndarray) -> np.ndarray:
+    """Affine warps of states.
+
+    Parameters
+    ----------
+    states : (..., 6) float
+        ``[cx, cy, scale, rotation, aspect, skew]``.
+
+    Returns
+    -------
+    matrices : (..., 2, 3) float64
+        ``[A | c]`` mapping centred template coordinates ``(u, v, 1)`` to image ``(x, y)``.
+    """
+    states = np.asarray(states, dtype=np.float64)
+    if states.shape[-1:] != (6,):
+        raise ParameterError(f"states must have shape (..., 6), got {states.shape}")
+    scale, rotation, aspect, skew = (states[..., k] for k in range(2, 6))
+    stretch = np.zeros(states.shape[:-1] + (2, 2))
+    stretch[..., 0, 0] = 1.0
+    stretch[..., 1, 1] = aspect
+    linear = scale[..., None, None] * (_rotation(rotation) @ _rotation(-skew) @ stretch @ _rotation(skew))
+    return np.concatenate([linear, states[..., :2, None]], axis=-1)
+
+
+def affine_to_state(matrices: np.ndarray) -> np.ndarray:
+    """Canonical states of affine warps (inverse of :func:`state_to_affine`).
+
+    Parameters
+    ----------
+    matrices : (..., 2, 3) float
+        Warps with a positive-determinant 2x2 part.
+
+    Returns
+    -------
+    states : (..., 6) float64
+    """
+    matrices = np.asarray(matrices, dtype=np.float64)
+    if matrices.shape[-2:] != (2, 3):
+        raise ParameterError(f"matrices must have shape (..., 2, 3), got {matrices.shape}")
+    linear = matrices[..., :2]
+    det = linear[..., 0, 0] * linear[..., 1, 1] - linear[..., 0, 1] * linear[..., 1, 0]
+    if np.any(~(det > 0)):
+        raise ParameterError("affine matrix must have a positive determinant (no reflection, non-degenerate)")
+    # Polar decomposition A = R(theta) P, P symmetric positive definite. For 2x2
+    # matrices with det > 0 the rotation angle has this closed form.
+    rotation = np.arctan2(linear[..., 1, 0] - linear[..., 0, 1], linear[..., 0, 0] + linear[..., 1, 1])
+    sym = _rotation(-rotation) @ linear
+    p, q, t = sym[..., 0, 0], 0.5 * (sym[..., 0, 1] + sym[..., 1, 0]), sym[..., 1, 1]
+    # P = R(-skew) diag(a, b) R(skew) gives (p - t, -2q) = (a - b) (cos 2 skew, sin 2 skew);
+    # choosing the sign of (a - b) so that cos(2 skew) >= 0 puts skew in (-pi/4, pi/4].
+    spread = np.hypot(p - t, 2 * q)
+    sign = np.where((p - t > 0) | ((p - t == 0) & (q <= 0)), 1.0, -1.0)
+    diff = sign * spread
+    with np.errstate(invalid="ignore", divide="ignore"):
+        skew = np.where(spread > 1e-12 * (p + t), 0.5 * np.arctan2(-2 * q / diff, (p - t) / diff), 0.0)
+    first = 0.5 * (p + t + diff)
+    second = 0.5 * (p + t - diff)
+    aspect = np.where(spread > 1e-12 * (p + t), second / first, 1.0)
+    rotation = np.where(rotation <= -np.pi, rotation + 2 * np.pi, rotation)
+    return np.stack([matrices[..., 0, 2], matrices[..., 1, 2], first, rotation, aspect, skew], axis=-1)
+
+
+def box_to_state(boxes: np.ndarray, patch_size: int = PATCH_SIZE) -> np.ndarray:
+    """States of 1-based OTB boxes (rotation = skew = 0).
+
+    Parameters
+    ----------
+    boxes : (..., 4) float
+        ``(x, y, w, h)`` with ``w, h > 0``.
+
+    Returns
+    -------
+    states : (..., 6) float64
+    """
+    boxes = np.asarray(boxes, dtype=np.float64)
+    if boxes.shape[-1:] != (4,):
+        raise ParameterError(f"boxes must have shape (..., 4), got {boxes.shape}")
+    x, y, w, h = (boxes[..., k] for k in range(4))
+    if np.any(~(w > 0)) or np.any(~(h > 0)):
+        raise ParameterError("box width and height must be positive")
+    zeros = np.zeros_like(x)
+    return np.stack([x - 1 + w / 2, y - 1 + h / 2, w / patch_size, zeros, h / w, zeros], axis=-1)
+
+
+def state_to_box(states: np.ndarray, patch_size: int = PATCH_SIZE) -> np.ndarray:
+    """1-based OTB boxes enclosing the warped template of each state.
+
+    Parameters
+    ----------
+    states : (..., 6) float
+
+    Returns
+    -------
+    boxes : (..., 4) float64
+        ``(x, y, w, h)``, the axis-aligned bounding box of the template corners.
+    """
+    matrices = state_to_affine(states)
+    half = patch_size / 2.0
+    corners = np.array([[-half, -half], [half, -half], [half, half], [-half, half]]).T  # (2, 4)
+    points = matrices[..., :2] @ corners + matrices[..., 2:]  # (..., 2, 4)
+    low, high = points.min(axis=-1), points.max(axis=-1)
+    return np.concatenate([low + 1.0, high - low], axis=-1)
+
+
+def affine_for_opencv(matrices: np.ndarray, patch_size: int = PATCH_SIZE) -> np.ndarray:
+    """Convert warps to OpenCV's inverse-map form for ``cv2.warpAffine``.
+
+    ``cv2.warpAffine(frame, M, (P, P), flags=INTER_LINEAR | WARP_INVERSE_MAP)`` samples
+    ``frame`` at ``M @ [col, row, 1]``; our warp samples at ``A @ [col - c, row - c] + t``
+    with ``c = (P - 1)/2``. So ``M = [A | t - A @ [c, c]]``.
+
+    Parameters
+    ----------
+    matrices : (..., 2, 3) float
+
+    Returns
+    -------
+    opencv_matrices : (..., 2, 3) float64
+    """
+    matrices = np.array(matrices, dtype=np.float64)
+    centre = (patch_size - 1) / 2.0
+    matrices[..., 2] -= matrices[..., :2] @ np.array([centre, centre])
+    return matrices
