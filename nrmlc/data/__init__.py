@@ -1,0 +1,26 @@
+"""Sequences: OTB folders, sparse-tracker packs and synthetic videos.
+
+Public API::
+
+    open_sequence(path, target=None, init_box=None) -> Sequence
+    list_sequences(root) -> list[Sequence]
+    read_box_file(path) -> (n, 4) float64
+    SyntheticSpec, SyntheticSequence(spec), synthetic_suite(...)
+    write_otb_sequence(sequence, folder)
+"""
+from nrmlc.data.boxes import read_box_file
+from nrmlc.data.sequence import Sequence, list_sequences, open_sequence
+from nrmlc.data.sparsepack import read_sparsepack_groundtruth
+from nrmlc.data.synthetic import SyntheticSequence, SyntheticSpec, synthetic_suite, write_otb_sequence
+
+__all__ = [
+    "Sequence",
+    "open_sequence",
+    "list_sequences",
+    "read_box_file",
+    "read_sparsepack_groundtruth",
+    "SyntheticSpec",
+    "SyntheticSequence",
+    "synthetic_suite",
+    "write_otb_sequence",
+]

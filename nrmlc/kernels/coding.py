@@ -1,0 +1,714 @@
+"""Approximated-LLC coding of candidates over multiple local dictionaries.
+
+Notation (paper Sections 3.1-3.4, Algorithm 1). Candidate ``y`` (one row of
+the candidate matrix), template set ``T`` (rows), ``u`` = the candidate's
+``k_max`` nearest template indices sorted by ascending distance. Dictionary
+``j`` is ``B^j = [t_{u_1}, ..., t_{u_{k_j}}]`` (the first ``k_j``
+neighbours). All problems have the form
+
+    minimise  c' (G + ridge I) c   subject to  1'c = 1   [and c >= 0],
+
+where ``G = A'A`` with ``A = B - y 1'``, because ``||y - B c||^2 =
+||A c||^2`` whenever ``1'c = 1``. ``G`` is never formed from the
+``dim``-length vectors: it is expanded from the template Gram ``TT``, the
+inner products ``YT`` and ``|y|^2``,
+
+    G[a, b] = TT[u_a, u_b] - YT[u_a] - YT[u_b] + |y|^2,
+
+which costs ``O(k^2)`` per candidate and dictionary. The expansion cancels
+terms of size ``|y|^2`` to produce entries of size ``||t - y||^2``, so
+``G`` carries an absolute error of a few ulps of ``|y|^2`` (float64 dots)
+or of the dots themselves (~1e-6 with float32 ``sgemm`` dots).
+
+Three solver behaviours, shared by the coefficients ``c`` (kernel 1,
+:func:`encode_dictionaries`) and the dictionary weights ``w`` (kernel 2,
+:func:`combine_dictionaries`):
+
+* ``ridge > 0``, ``constrained=False`` (the paper's regularised coder, eq.
+  allcr/allcw): ``c = (G + ridge I)^{-1} 1 / (1' (G + ridge I)^{-1} 1)``.
+  The paper prints the solution without the division; the Lagrangian
+  solution of the sum-to-one problem needs it (it is only a rescaling, so
+  signs and ratios are the paper's).
+* ``ridge == 0``, ``constrained=False`` ("plain" approximated LLC, eq. allc):
+  ``G`` may be singular (duplicate templates, ``k`` above the rank). A
+  diagonal jitter ``PLAIN_JITTER * (|y|^2 + max_a |t_{u_a}|^2)`` is used as
+  the ridge (see :data:`PLAIN_JITTER`), which gives the limit
+  ``ridge -> 0+``: the minimum-norm minimiser, to a relative error of about
+  ``jitter / (smallest non-zero eigenvalue of G)``. The jitter is scaled by
+  the data (not by ``G``) because it must dominate the rounding noise of the
+  expansion, which is proportional to ``|y|^2 + |t|^2``; then a ``G`` that
+  is zero up to rounding (all templates equal to ``y``) yields the uniform
+  ``1/k`` instead of amplified noise. A ``ridge`` below the jitter is raised
+  to it.
+* ``constrained=True`` (the paper's non-negative problems, eq. allcn/multillc):
+  the exact QP with ``c >= 0`` as well, solved by a primal active-set method
+  (:func:`_solve_simplex_qp`) on ``G + ridge I`` (the same jitter applies
+  when ``ridge`` is 0).
+
+Every small ``k x k`` system is solved by a hand-written Cholesky
+factorisation in per-candidate work buffers. If a pivot falls below half the
+diagonal shift (impossible in exact arithmetic for ``G`` PSD, so a sign that
+rounding noise made ``G`` indefinite) the shift is multiplied by 10 and the
+factorisation retried; the result is therefore finite for any finite input.
+Non-finite inputs give NaN coefficients rather than a silent fallback.
+"""
+from __future__ import annotations
+
+import numbers
+
+import numpy as np
+from numba import njit, prange
+
+from nrmlc.config import NUMBA_FLAGS, PARALLEL_FLAGS
+from nrmlc.errors import ParameterError
+
+__all__ = ["PLAIN_JITTER", "encode_dictionaries", "combine_dictionaries", "scatter_codes"]
+
+#: Relative diagonal jitter used when ``ridge`` is 0 (or smaller than the
+#: jitter), in units of ``|y|^2 + max |t|^2`` over the dictionary. With float64
+#: dots the rounding noise of the expanded Gram is ~1e-16 of that scale, so the
+#: jitter dominates it by ~1e6 while perturbing well-conditioned solutions by
+#: only ~1e-10 relative.
+PLAIN_JITTER = 1e-10
+
+#: Absolute lower bound of the diagonal shift, for all-zero data (G == 0 exactly).
+#: Small enough to be irrelevant, large enough that ``1/shift`` cannot overflow.
+_SHIFT_FLOOR = 1e-290
+
+#: Each failed Cholesky multiplies the shift by 10; 40 retries take the shift
+#: from the jitter far beyond any rounding noise of finite data.
+_MAX_RETRIES = 40
+
+#: Tolerance of the active-set optimality test, relative to the largest diagonal
+#: entry of ``G + ridge I`` (the scale of the gradient).
+_KKT_TOLERANCE = 1e-11
+
+
+@njit(**NUMBA_FLAGS)
+def _diagonal_shift(ridge, data_scale):
+    """Diagonal shift ``max(ridge, PLAIN_JITTER * data_scale, _SHIFT_FLOOR)``."""
+    shift = ridge
+    jitter = PLAIN_JITTER * data_scale
+    if jitter > shift:
+        shift = jitter
+    if shift < _SHIFT_FLOOR:
+        shift = _SHIFT_FLOOR
+    return shift
+
+
+@njit(**NUMBA_FLAGS)
+def _solve_sum_to_one(gram, members, n_members, shift, chol, solution):
+    """Minimise ``c' (G_W + shift I) c`` subject to ``1'c = 1``.
+
+    Parameters
+    ----------
+    gram : ndarray, shape (k_max, k_max)
+        Symmetric matrix ``G``; only rows/columns listed in ``members`` are read.
+    members : ndarray, shape (k_max,), int64
+        ``members[:n_members]`` is the index set ``W`` of the subproblem.
+    n_members : int
+        Size of ``W`` (at least 1).
+    shift : float
+        Positive diagonal shift (ridge or jitter).
+    chol : ndarray, shape (k_max, k_max)
+        Work buffer for the Cholesky factor ``L`` (lower triangle).
+    solution : ndarray, shape (k_max,)
+        Output: ``solution[:n_members]`` is ``c`` in the order of ``members``.
+
+    Returns
+    -------
+    shift_used : float
+        The shift after any retries (equal to ``shift`` unless rounding made
+        ``G_W`` numerically indefinite).
+    """
+    n = n_members
+    for r in range(n):
+        for q in range(r + 1):
+            if not np.isfinite(gram[members[r], members[q]]):
+                # Garbage in, visible garbage out: no silent fallback on NaN/inf.
+                for s in range(n):
+                    solution[s] = np.nan
+                return shift
+    current = shift
+    for _attempt in range(_MAX_RETRIES):
+        # In exact arithmetic every pivot of G_W + s I is >= s (G_W is PSD);
+        # a pivot below s/2 means rounding made G_W indefinite.
+        threshold = 0.5 * current
+        factorised = True
+        for r in range(n):
+            row = members[r]
+            for q in range(r + 1):
+                value = gram[row, members[q]]
+                for p in range(q):
+                    value -= chol[r, p] * chol[q, p]
+                if q == r:
+                    value += current
+                    if not value >= threshold:
+                        factorised = False
+                        break
+                    chol[r, r] = np.sqrt(value)
+                else:
+                    chol[r, q] = value / chol[q, q]
+            if not factorised:
+                break
+        if factorised:
+            # Forward substitution L z = 1, then back substitution L' x = z.
+            for r in range(n):
+                value = 1.0
+                for p in range(r):
+                    value -= chol[r, p] * solution[p]
+                solution[r] = value / chol[r, r]
+            for r in range(n - 1, -1, -1):
+                value = solution[r]
+                for p in range(r + 1, n):
+                    value -= chol[p, r] * solution[p]
+                solution[r] = value / chol[r, r]
+            total = 0.0
+            for r in range(n):
+                total += solution[r]
+            # 1'F^{-1}1 > 0 for F positive definite; anything else is a failure.
+            if total > 0.0 and total < np.inf:
+                for r in range(n):
+                    solution[r] = solution[r] / total
+                return current
+        current *= 10.0
+    # Unreachable for finite data of sane magnitude; keep the output feasible.
+    for r in range(n):
+        solution[r] = 1.0 / n
+    return current
+
+
+@njit(**NUMBA_FLAGS)
+def _solve_simplex_qp(gram, k, shift, chol, members, is_free, trial, grad, coef):
+    """Minimise ``c' (G + shift I) c`` subject to ``c >= 0`` and ``1'c = 1``.
+
+    Primal active-set method on the leading ``k x k`` block of ``gram``:
+
+    1. start at the best vertex ``e_a`` (smallest diagonal, lowest index on
+       ties), which is feasible;
+    2. solve the equality-constrained subproblem on the free set ``W``
+       (:func:`_solve_sum_to_one`);
+    3. if that point has negative entries, move towards it as far as
+       feasibility allows (ratio test) and drop the blocking variable(s);
+    4. otherwise accept it and compute the gradient ``g = 2 F c``. On ``W``,
+       ``g_a`` equals the multiplier ``mu = c'g`` of the sum constraint; a bound
+       variable ``b`` is optimal iff ``g_b - mu >= -tol``. Release the one with
+       the most negative ``g_b - mu`` (lowest index on ties) or stop.
+
+    The objective strictly decreases between accepted points, so the method
+    terminates in exact arithmetic; against cycling on degenerate (rounding
+    driven) steps the loop is capped at ``4 k + 10`` subproblem solves, after
+    which the current feasible point is returned. ``k <= 16`` solves in a
+    handful of iterations in practice.
+
+    Parameters
+    ----------
+    gram : ndarray, shape (k_max, k_max)
+        Symmetric PSD matrix ``G``.
+    k : int
+        Number of variables (leading block used).
+    shift : float
+        Positive diagonal shift (ridge or jitter), ``F = G + shift I``.
+    chol : ndarray, shape (k_max, k_max)
+        Cholesky work buffer.
+    members, is_free : ndarray, shape (k_max,), int64
+        Work buffers: free-set list and free-set indicator.
+    trial, grad : ndarray, shape (k_max,), float64
+        Work buffers: subproblem solution, gradient.
+    coef : ndarray, shape (k_max,), float64
+        Output ``c`` in ``coef[:k]``.
+
+    Returns
+    -------
+    n_solves : int
+        Number of subproblem solves (``4 k + 10`` means the cap was hit).
+    """
+    start = 0
+    largest_diagonal = gram[0, 0]
+    for a in range(k):
+        coef[a] = 0.0
+        is_free[a] = 0
+        if gram[a, a] < gram[start, start]:
+            start = a
+        if gram[a, a] > largest_diagonal:
+            largest_diagonal = gram[a, a]
+    coef[start] = 1.0
+    is_free[start] = 1
+    tolerance = _KKT_TOLERANCE * (abs(largest_diagonal) + shift)
+
+    max_solves = 4 * k + 10
+    n_solves = 0
+    while n_solves < max_solves:
+        n_free = 0
+        for a in range(k):
+            if is_free[a] == 1:
+                members[n_free] = a
+                n_free += 1
+        _solve_sum_to_one(gram, members, n_free, shift, chol, trial)
+        n_solves += 1
+        if not np.isfinite(trial[0]):
+            for a in range(k):
+                coef[a] = np.nan
+            return n_solves
+
+        # Ratio test: the largest step towards the subproblem solution that
+        # keeps every free variable non-negative.
+        step = 1.0
+        blocking = -1
+        for r in range(n_free):
+            if trial[r] < 0.0:
+                a = members[r]
+                ratio = coef[a] / (coef[a] - trial[r])
+                if ratio < step:
+                    step = ratio
+                    blocking = a
+        if blocking >= 0:
+            for r in range(n_free):
+                a = members[r]
+                coef[a] += step * (trial[r] - coef[a])
+            coef[blocking] = 0.0
+            is_free[blocking] = 0
+            for r in range(n_free):
+                a = members[r]
+                if coef[a] <= 0.0:  # ties of the ratio test leave them at ~0
+                    coef[a] = 0.0
+                    is_free[a] = 0
+            continue
+
+        for r in range(n_free):
+            coef[members[r]] = trial[r]
+        multiplier = 0.0
+        for a in range(k):
+            value = shift * coef[a]
+            for b in range(k):
+                value += gram[a, b] * coef[b]
+            grad[a] = 2.0 * value
+            multiplier += coef[a] * grad[a]
+        entering = -1
+        most_negative = -tolerance
+        for a in range(k):
+            if is_free[a] == 0:
+                slack = grad[a] - multiplier
+                if slack < most_negative:
+                    most_negative = slack
+                    entering = a
+        if entering < 0:
+            break
+        is_free[entering] = 1
+
+    # Steps accumulate rounding; restore exact feasibility.
+    total = 0.0
+    for a in range(k):
+        if coef[a] < 0.0:
+            coef[a] = 0.0
+        total += coef[a]
+    for a in range(k):
+        coef[a] = coef[a] / total
+    return n_solves
+
+
+@njit(**NUMBA_FLAGS)
+def _solve(gram, k, shift, constrained, chol, members, is_free, trial, grad, out):
+    """Dispatch to the closed form or the QP; writes the solution to ``out[:k]``."""
+    if constrained:
+        _solve_simplex_qp(gram, k, shift, chol, members, is_free, trial, grad, out)
+    else:
+        for a in range(k):
+            members[a] = a
+        _solve_sum_to_one(gram, members, k, shift, chol, out)
+
+
+@njit(**PARALLEL_FLAGS)
+def _encode_dictionaries(
+    template_gram, dots, candidate_sq_norms, neighbour_indices, dictionary_sizes,
+    ridge, constrained, gram_work, chol_work, real_work, int_work, coefficients,
+):
+    n_candidates, k_max = neighbour_indices.shape
+    n_dictionaries = dictionary_sizes.shape[0]
+    for i in prange(n_candidates):
+        gram = gram_work[i]
+        neighbours = neighbour_indices[i]
+        sq_norm = candidate_sq_norms[i]
+        # Gram of A = B - y 1' for the full k_max support; the dictionaries are
+        # nested (first k_j neighbours) so each uses its leading block.
+        for a in range(k_max):
+            ua = neighbours[a]
+            for b in range(a + 1):
+                ub = neighbours[b]
+                # Grouped so that each bracket is a difference of near-equal
+                # terms (Sterbenz-exact for near-duplicate vectors).
+                value = (template_gram[ua, ub] - dots[i, ua]) - (dots[i, ub] - sq_norm)
+                gram[a, b] = value
+                gram[b, a] = value
+        for j in range(n_dictionaries):
+            k = dictionary_sizes[j]
+            largest = 0.0
+            for a in range(k):
+                ua = neighbours[a]
+                if template_gram[ua, ua] > largest:
+                    largest = template_gram[ua, ua]
+            shift = _diagonal_shift(ridge, sq_norm + largest)
+            out = real_work[i, 2]
+            _solve(gram, k, shift, constrained, chol_work[i], int_work[i, 0], int_work[i, 1],
+                   real_work[i, 0], real_work[i, 1], out)
+            for a in range(k):
+                coefficients[i, j, a] = out[a]
+
+
+@njit(**PARALLEL_FLAGS)
+def _combine_dictionaries(
+    template_gram, dots, candidate_sq_norms, neighbour_indices, coefficients,
+    dictionary_sizes, n_positive, ridge, constrained, n_iterations,
+    support_work, image_work, gram_work, chol_work, real_work, int_work,
+    weights, codes, error_positive, error_negative,
+):
+    n_candidates, k_max = neighbour_indices.shape
+    n_dictionaries = dictionary_sizes.shape[0]
+    for i in prange(n_candidates):
+        neighbours = neighbour_indices[i]
+        sq_norm = candidate_sq_norms[i]
+        support_gram = support_work[i]  # TT restricted to the support S
+        images = image_work[i]          # images[j] = TT_S d^j
+        gram = gram_work[i]             # Gram of D - y 1'
+        projections = real_work[i, 3]   # projections[j] = d^j . YT_S
+        solved = real_work[i, 2]        # the w of eq. allcw
+        for a in range(k_max):
+            for b in range(a + 1):
+                value = template_gram[neighbours[a], neighbours[b]]
+                support_gram[a, b] = value
+                support_gram[b, a] = value
+
+        # Reconstructions D_j = T d^j, handled through d^j's support coordinates
+        # (= coefficients[i, j, :k_j]); entries beyond k_j are ignored.
+        largest = 0.0
+        for j in range(n_dictionaries):
+            k = dictionary_sizes[j]
+            projection = 0.0
+            energy = 0.0
+            for a in range(k_max):
+                value = 0.0
+                for b in range(k):
+                    value += support_gram[a, b] * coefficients[i, j, b]
+                images[j, a] = value
+            for a in range(k):
+                projection += coefficients[i, j, a] * dots[i, neighbours[a]]
+                energy += coefficients[i, j, a] * images[j, a]
+            projections[j] = projection
+            if energy > largest:
+                largest = energy
+        # (D_j - y).(D_l - y) = d^j' TT_S d^l - d^j.YT_S - d^l.YT_S + |y|^2
+        for j in range(n_dictionaries):
+            k = dictionary_sizes[j]
+            for l in range(j + 1):
+                cross = 0.0
+                for a in range(k):
+                    cross += coefficients[i, j, a] * images[l, a]
+                value = (cross - projections[j]) - (projections[l] - sq_norm)
+                gram[j, l] = value
+                gram[l, j] = value
+
+        # Algorithm 1. Step 3.2 solves eq. allcw, whose Gram does not depend on
+        # d, so every pass yields the same w: solve it once. Step 3.1 of pass t
+        # combines with the w of pass t-1: uniform on the first pass, the
+        # solved w from the second pass on.
+        uniform = 1.0 / n_dictionaries
+        if n_iterations >= 1:
+            shift = _diagonal_shift(ridge, sq_norm + largest)
+            _solve(gram, n_dictionaries, shift, constrained, chol_work[i], int_work[i, 0],
+                   int_work[i, 1], real_work[i, 0], real_work[i, 1], solved)
+            for j in range(n_dictionaries):
+                weights[i, j] = solved[j]
+        else:
+            for j in range(n_dictionaries):
+                weights[i, j] = uniform
+        for a in range(k_max):
+            value = 0.0
+            for j in range(n_dictionaries):
+                if a < dictionary_sizes[j]:
+                    if n_iterations >= 2:
+                        value += solved[j] * coefficients[i, j, a]
+                    else:
+                        value += uniform * coefficients[i, j, a]
+            codes[i, a] = value
+
+        # eq. conf: reconstruction errors of the positive and negative parts,
+        # |y|^2 - 2 d_P.YT_P + d_P' TT_PP d_P for P = positive or negative support.
+        linear_positive = 0.0
+        quadratic_positive = 0.0
+        linear_negative = 0.0
+        quadratic_negative = 0.0
+        for a in range(k_max):
+            positive_a = neighbours[a] < n_positive
+            part = 0.0
+            for b in range(k_max):
+                if (neighbours[b] < n_positive) == positive_a:
+                    part += support_gram[a, b] * codes[i, b]
+            if positive_a:
+                linear_positive += codes[i, a] * dots[i, neighbours[a]]
+                quadratic_positive += codes[i, a] * part
+            else:
+                linear_negative += codes[i, a] * dots[i, neighbours[a]]
+                quadratic_negative += codes[i, a] * part
+        value = (sq_norm - linear_positive) + (quadratic_positive - linear_positive)
+        error_positive[i] = value if value > 0.0 else 0.0
+        value = (sq_norm - linear_negative) + (quadratic_negative - linear_negative)
+        error_negative[i] = value if value > 0.0 else 0.0
+
+
+# ---------------------------------------------------------------------------
+# Checked public wrappers
+# ---------------------------------------------------------------------------
+
+def _check_array(name, array, dtype, ndim):
+    if not isinstance(array, np.ndarray):
+        raise ParameterError(f"{name} must be a numpy array, got {type(array).__name__}")
+    if array.dtype != dtype:
+        raise ParameterError(f"{name} must have dtype {np.dtype(dtype)}, got {array.dtype}")
+    if array.ndim != ndim:
+        raise ParameterError(f"{name} must be {ndim}-D, got shape {array.shape}")
+    if not array.flags.c_contiguous:
+        raise ParameterError(f"{name} must be C-contiguous")
+
+
+def _check_int(name, value, minimum, maximum=None):
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, numbers.Integral):
+        raise ParameterError(f"{name} must be an integer, got {value!r}")
+    value = int(value)
+    if value < minimum or (maximum is not None and value > maximum):
+        upper = "" if maximum is None else f", <= {maximum}"
+        raise ParameterError(f"{name} must be >= {minimum}{upper}, got {value}")
+    return value
+
+
+def _check_ridge(name, value):
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, numbers.Real):
+        raise ParameterError(f"{name} must be a real number, got {value!r}")
+    value = float(value)
+    if not (np.isfinite(value) and value >= 0.0):
+        raise ParameterError(f"{name} must be finite and >= 0, got {value}")
+    return value
+
+
+def _check_flag(name, value):
+    if not isinstance(value, (bool, np.bool_)):
+        raise ParameterError(f"{name} must be a bool, got {value!r}")
+    return bool(value)
+
+
+def _check_common(template_gram, dots, candidate_sq_norms, neighbour_indices, dictionary_sizes):
+    """Validate the inputs shared by both kernels; return (n_candidates, n_templates, k_max)."""
+    _check_array("template_gram", template_gram, np.float64, 2)
+    _check_array("dots", dots, np.float64, 2)
+    _check_array("candidate_sq_norms", candidate_sq_norms, np.float64, 1)
+    _check_array("neighbour_indices", neighbour_indices, np.int64, 2)
+    _check_array("dictionary_sizes", dictionary_sizes, np.int64, 1)
+    n_candidates, n_templates = dots.shape
+    if template_gram.shape != (n_templates, n_templates):
+        raise ParameterError(
+            f"template_gram must have shape ({n_templates}, {n_templates}), got {template_gram.shape}"
+        )
+    if candidate_sq_norms.shape[0] != n_candidates:
+        raise ParameterError(
+            f"candidate_sq_norms has {candidate_sq_norms.shape[0]} entries, dots has {n_candidates} rows"
+        )
+    if neighbour_indices.shape[0] != n_candidates:
+        raise ParameterError(
+            f"neighbour_indices has {neighbour_indices.shape[0]} rows, dots has {n_candidates}"
+        )
+    k_max = neighbour_indices.shape[1]
+    if k_max < 1:
+        raise ParameterError("neighbour_indices must have at least one column")
+    # Out-of-range indices would read outside template_gram in the kernels.
+    if neighbour_indices.size and (
+        neighbour_indices.min() < 0 or neighbour_indices.max() >= n_templates
+    ):
+        raise ParameterError(f"neighbour_indices must lie in [0, {n_templates})")
+    if dictionary_sizes.shape[0] < 1:
+        raise ParameterError("dictionary_sizes must list at least one dictionary")
+    if dictionary_sizes.min() < 1 or dictionary_sizes.max() > k_max:
+        raise ParameterError(
+            f"dictionary_sizes must lie in [1, k_max={k_max}], got {dictionary_sizes.tolist()}"
+        )
+    return n_candidates, n_templates, k_max
+
+
+def encode_dictionaries(
+    template_gram: np.ndarray,
+    dots: np.ndarray,
+    candidate_sq_norms: np.ndarray,
+    neighbour_indices: np.ndarray,
+    dictionary_sizes: np.ndarray,
+    ridge: float,
+    constrained: bool,
+) -> np.ndarray:
+    """Approximated-LLC coefficients of every candidate over each local dictionary.
+
+    Dictionary ``j`` of candidate ``i`` is made of its ``dictionary_sizes[j]``
+    nearest templates; its coefficients solve (module docstring)
+    ``min ||y_i - B^j c||^2 + ridge ||c||^2`` s.t. ``1'c = 1`` (closed form,
+    eq. allcr), and also ``c >= 0`` when ``constrained`` (eq. allcn/knn).
+
+    Parameters
+    ----------
+    template_gram : ndarray, shape (n_templates, n_templates), float64
+        ``T T'`` (:func:`nrmlc.kernels.distance.template_gram`), symmetric.
+    dots : ndarray, shape (n_candidates, n_templates), float64
+        ``Y T'`` (:func:`nrmlc.kernels.distance.candidate_template_dots`).
+    candidate_sq_norms : ndarray, shape (n_candidates,), float64
+        ``|y_i|^2``.
+    neighbour_indices : ndarray, shape (n_candidates, k_max), int64
+        Nearest template indices sorted by ascending distance
+        (:func:`nrmlc.kernels.distance.nearest_templates`).
+    dictionary_sizes : ndarray, shape (n_dictionaries,), int64
+        Sizes ``k_j`` (e.g. ``[5, 8, 10]``), each in ``[1, k_max]``.
+    ridge : float
+        ``lambda >= 0``. Zero selects the plain coder (jitter, see
+        :data:`PLAIN_JITTER`).
+    constrained : bool
+        Solve the exact non-negative QP instead of the closed form.
+
+    Returns
+    -------
+    coefficients : ndarray, shape (n_candidates, n_dictionaries, k_max), float64
+        ``coefficients[i, j, a]`` weighs template ``neighbour_indices[i, a]``
+        in dictionary ``j``; entries with ``a >= dictionary_sizes[j]`` are 0.
+        Each row over its dictionary sums to 1.
+    """
+    n_candidates, _, k_max = _check_common(
+        template_gram, dots, candidate_sq_norms, neighbour_indices, dictionary_sizes
+    )
+    ridge = _check_ridge("ridge", ridge)
+    constrained = _check_flag("constrained", constrained)
+    n_dictionaries = dictionary_sizes.shape[0]
+    coefficients = np.zeros((n_candidates, n_dictionaries, k_max), dtype=np.float64)
+    # Per-candidate work buffers, allocated once outside the parallel loop.
+    gram_work = np.empty((n_candidates, k_max, k_max), dtype=np.float64)
+    chol_work = np.empty((n_candidates, k_max, k_max), dtype=np.float64)
+    real_work = np.empty((n_candidates, 3, k_max), dtype=np.float64)
+    int_work = np.empty((n_candidates, 2, k_max), dtype=np.int64)
+    _encode_dictionaries(
+        template_gram, dots, candidate_sq_norms, neighbour_indices, dictionary_sizes,
+        ridge, constrained, gram_work, chol_work, real_work, int_work, coefficients,
+    )
+    return coefficients
+
+
+def combine_dictionaries(
+    template_gram: np.ndarray,
+    dots: np.ndarray,
+    candidate_sq_norms: np.ndarray,
+    neighbour_indices: np.ndarray,
+    coefficients: np.ndarray,
+    dictionary_sizes: np.ndarray,
+    n_positive: int,
+    ridge: float,
+    constrained: bool,
+    n_iterations: int,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Dictionary weights, output codes and confidence errors (Algorithm 1, eq. conf).
+
+    With ``d^j`` = the coefficients of dictionary ``j`` scattered onto the
+    templates (eq. allocation) and ``D = [T d^1, ..., T d^m]``, the weights
+    solve ``min ||y - D w||^2 + ridge ||w||^2`` s.t. ``1'w = 1`` (eq. allcw;
+    also ``w >= 0`` when ``constrained``, eq. multillc) with the same solver
+    as :func:`encode_dictionaries`. Algorithm 1: ``w = 1/m``; repeat
+    ``n_iterations`` times {``d = sum_j w_j d^j``; solve ``w``}. The ``w``
+    problem does not depend on ``d``, so ``w`` is solved once and the
+    alternation is at its fixed point after one pass.
+
+    Parameters
+    ----------
+    template_gram, dots, candidate_sq_norms, neighbour_indices, dictionary_sizes
+        As in :func:`encode_dictionaries`.
+    coefficients : ndarray, shape (n_candidates, n_dictionaries, k_max), float64
+        Output of :func:`encode_dictionaries`; entries beyond ``k_j`` are ignored.
+    n_positive : int
+        Templates ``0 .. n_positive-1`` are positive, the rest negative.
+    ridge : float
+        ``beta >= 0`` for the weight problem (0: plain, with jitter).
+    constrained : bool
+        Solve the non-negative QP for ``w`` instead of the closed form.
+    n_iterations : int
+        Passes ``T >= 0`` of Algorithm 1.
+
+    Returns
+    -------
+    weights : ndarray, shape (n_candidates, n_dictionaries), float64
+        Final ``w`` (uniform ``1/m`` when ``n_iterations == 0``).
+    codes : ndarray, shape (n_candidates, k_max), float64
+        The output code ``d_i`` in support coordinates: ``codes[i, a]`` weighs
+        template ``neighbour_indices[i, a]`` (see :func:`scatter_codes`). It
+        is the last step-3.1 combination: uniform ``w`` for
+        ``n_iterations <= 1``, the solved ``w`` for ``n_iterations >= 2``.
+    error_positive, error_negative : ndarray, shape (n_candidates,), float64
+        ``||y - T_pos d_pos||^2`` and ``||y - T_neg d_neg||^2`` (eq. conf),
+        clamped at 0 against cancellation.
+    """
+    n_candidates, n_templates, k_max = _check_common(
+        template_gram, dots, candidate_sq_norms, neighbour_indices, dictionary_sizes
+    )
+    n_dictionaries = dictionary_sizes.shape[0]
+    _check_array("coefficients", coefficients, np.float64, 3)
+    if coefficients.shape != (n_candidates, n_dictionaries, k_max):
+        raise ParameterError(
+            f"coefficients must have shape ({n_candidates}, {n_dictionaries}, {k_max}), "
+            f"got {coefficients.shape}"
+        )
+    n_positive = _check_int("n_positive", n_positive, 0, n_templates)
+    ridge = _check_ridge("ridge", ridge)
+    constrained = _check_flag("constrained", constrained)
+    n_iterations = _check_int("n_iterations", n_iterations, 0)
+
+    weights = np.empty((n_candidates, n_dictionaries), dtype=np.float64)
+    codes = np.empty((n_candidates, k_max), dtype=np.float64)
+    error_positive = np.empty(n_candidates, dtype=np.float64)
+    error_negative = np.empty(n_candidates, dtype=np.float64)
+    # Per-candidate work buffers, allocated once outside the parallel loop.
+    support_work = np.empty((n_candidates, k_max, k_max), dtype=np.float64)
+    image_work = np.empty((n_candidates, n_dictionaries, k_max), dtype=np.float64)
+    gram_work = np.empty((n_candidates, n_dictionaries, n_dictionaries), dtype=np.float64)
+    chol_work = np.empty((n_candidates, n_dictionaries, n_dictionaries), dtype=np.float64)
+    real_work = np.empty((n_candidates, 4, n_dictionaries), dtype=np.float64)
+    int_work = np.empty((n_candidates, 2, n_dictionaries), dtype=np.int64)
+    _combine_dictionaries(
+        template_gram, dots, candidate_sq_norms, neighbour_indices, coefficients,
+        dictionary_sizes, n_positive, ridge, constrained, n_iterations,
+        support_work, image_work, gram_work, chol_work, real_work, int_work,
+        weights, codes, error_positive, error_negative,
+    )
+    return weights, codes, error_positive, error_negative
+
+
+def scatter_codes(codes: np.ndarray, neighbour_indices: np.ndarray, n_templates: int) -> np.ndarray:
+    """Spread support-coordinate codes over all templates (eq. allocation).
+
+    Parameters
+    ----------
+    codes : ndarray, shape (n_candidates, k_max), float64
+        Codes in support coordinates (:func:`combine_dictionaries`).
+    neighbour_indices : ndarray, shape (n_candidates, k_max), int64
+        Template index of each support entry.
+    n_templates : int
+        Total number of templates.
+
+    Returns
+    -------
+    full_codes : ndarray, shape (n_candidates, n_templates), float64
+        The uniform coefficient vectors ``d_i``; templates outside the support
+        are 0, and repeated support indices are summed.
+    """
+    _check_array("codes", codes, np.float64, 2)
+    _check_array("neighbour_indices", neighbour_indices, np.int64, 2)
+    if neighbour_indices.shape != codes.shape:
+        raise ParameterError(
+            f"neighbour_indices shape {neighbour_indices.shape} differs from codes shape {codes.shape}"
+        )
+    n_templates = _check_int("n_templates", n_templates, 1)
+    if neighbour_indices.size and (
+        neighbour_indices.min() < 0 or neighbour_indices.max() >= n_templates
+    ):
+        raise ParameterError(f"neighbour_indices must lie in [0, {n_templates})")
+    full_codes = np.zeros((codes.shape[0], n_templates), dtype=np.float64)
+    rows = np.arange(codes.shape[0])[:, None]
+    np.add.at(full_codes, (rows, neighbour_indices), codes)
+    return full_codes

@@ -1,0 +1,202 @@
+"""Candidate-template inner products and k-nearest-template selection.
+
+The coding stage (:mod:`nrmlc.kernels.coding`) never touches the
+``dim``-length vectors again: every squared distance and every local Gram
+matrix it needs is an expansion of three small tables,
+
+* ``dots[i, t] = y_i . t_t``            (:func:`candidate_template_dots`),
+* ``template_gram[s, t] = t_s . t_t``   (:func:`template_gram`),
+* ``|y_i|^2`` and ``|t_t|^2``           (row sums of squares, or the Gram diagonal).
+
+so the only ``O(dim)`` work per frame is one matrix product.
+
+Implementation choice (measured on the 2-core Xeon build machine, numba
+threads = BLAS threads = 2, ``n_candidates=600, n_templates=250, dim=1024``,
+median of 20 calls): OpenBLAS ``sgemm`` + cast to float64 took 1.76 ms, a
+numba ``prange`` kernel with float32 accumulation 7.98 ms (float64
+accumulation 16.8 ms), ``dgemm`` on float64 copies 4.0 ms including the
+casts. BLAS wins, so :func:`candidate_template_dots` is a checked wrapper
+around the matrix product and needs no ``njit``.
+
+Precision note: ``sgemm`` accumulates in float32, so each dot carries an
+absolute error of up to ~1e-6 for unit-norm rows (7e-7 measured). That is
+harmless for the regularised coder (``ridge`` around 1) but it is the
+dominant error of the unregularised ("plain") coder, whose local Gram
+entries are differences of such dots. Pass float64 arrays to get ``dgemm``
+(about 2.3x slower) when that matters.
+"""
+from __future__ import annotations
+
+import numpy as np
+from numba import njit, prange
+
+from nrmlc.config import PARALLEL_FLAGS
+from nrmlc.errors import ParameterError
+
+__all__ = ["candidate_template_dots", "template_gram", "nearest_templates"]
+
+_FLOAT_DTYPES = (np.dtype(np.float32), np.dtype(np.float64))
+
+
+def _check_array(name: str, array, dtypes, ndim: int) -> None:
+    """Raise ParameterError unless ``array`` is a C-contiguous ndarray of a given dtype/ndim."""
+    if not isinstance(array, np.ndarray):
+        raise ParameterError(f"{name} must be a numpy array, got {type(array).__name__}")
+    if array.dtype not in dtypes:
+        allowed = " or ".join(str(d) for d in dtypes)
+        raise ParameterError(f"{name} must have dtype {allowed}, got {array.dtype}")
+    if array.ndim != ndim:
+        raise ParameterError(f"{name} must be {ndim}-D, got shape {array.shape}")
+    if not array.flags.c_contiguous:
+        raise ParameterError(f"{name} must be C-contiguous")
+
+
+def candidate_template_dots(candidates: np.ndarray, templates: np.ndarray) -> np.ndarray:
+    """Inner products between every candidate and every template.
+
+    Parameters
+    ----------
+    candidates : ndarray, shape (n_candidates, dim), float32 or float64
+        Candidate patches as (unit-norm) rows, C-contiguous.
+    templates : ndarray, shape (n_templates, dim), same dtype as ``candidates``
+        Template patches as rows, C-contiguous.
+
+    Returns
+    -------
+    dots : ndarray, shape (n_candidates, n_templates), float64
+        ``dots[i, t] = candidates[i] . templates[t]``. Float32 inputs are
+        multiplied by ``sgemm`` (float32 accumulation) and then cast, which
+        was 2.3x faster than ``dgemm`` and 4.5x faster than a numba kernel
+        here (see the module docstring for timings and the precision cost).
+    """
+    _check_array("candidates", candidates, _FLOAT_DTYPES, 2)
+    _check_array("templates", templates, _FLOAT_DTYPES, 2)
+    if templates.dtype != candidates.dtype:
+        raise ParameterError(
+            f"templates dtype {templates.dtype} differs from candidates dtype {candidates.dtype}"
+        )
+    if templates.shape[1] != candidates.shape[1]:
+        raise ParameterError(
+            f"templates have dim {templates.shape[1]}, candidates have dim {candidates.shape[1]}"
+        )
+    products = candidates @ templates.T
+    if products.dtype == np.float64:
+        return np.ascontiguousarray(products)
+    return products.astype(np.float64)
+
+
+def template_gram(templates: np.ndarray) -> np.ndarray:
+    """Gram matrix of the template set, computed in float64.
+
+    Called once per template update (not per frame), so it uses float64
+    arithmetic (``dgemm`` on a float64 copy) for an accurate local Gram.
+
+    Parameters
+    ----------
+    templates : ndarray, shape (n_templates, dim), float32 or float64
+        Template patches as rows, C-contiguous.
+
+    Returns
+    -------
+    gram : ndarray, shape (n_templates, n_templates), float64
+        ``gram[s, t] = templates[s] . templates[t]``, exactly symmetric.
+    """
+    _check_array("templates", templates, _FLOAT_DTYPES, 2)
+    as_double = templates.astype(np.float64, copy=False)
+    gram = as_double @ as_double.T
+    # BLAS may round the two triangles differently; the coders rely on symmetry.
+    gram = np.triu(gram) + np.triu(gram, 1).T
+    return np.ascontiguousarray(gram)
+
+
+@njit(**PARALLEL_FLAGS)
+def _nearest_templates(dots, candidate_sq_norms, template_sq_norms, indices, sq_distances):
+    n_candidates, n_templates = dots.shape
+    k = indices.shape[1]
+    for i in prange(n_candidates):
+        # The output rows double as this candidate's sorted k-buffer: they are
+        # private to the candidate, so no extra work buffer is needed.
+        best_index = indices[i]
+        best_distance = sq_distances[i]
+        n_filled = 0
+        norm_i = candidate_sq_norms[i]
+        for t in range(n_templates):
+            distance = norm_i + template_sq_norms[t] - 2.0 * dots[i, t]
+            # Cancellation can make a true zero slightly negative; clamp so the
+            # ranking and the reported value agree.
+            if distance < 0.0:
+                distance = 0.0
+            # NaN sorts last (as +inf) so every slot is still filled.
+            if not (distance <= np.inf):
+                distance = np.inf
+            if n_filled < k:
+                position = n_filled
+                n_filled += 1
+            elif distance < best_distance[k - 1]:
+                position = k - 1
+            else:
+                continue
+            # Strict '>' keeps earlier (lower-index) templates ahead on ties.
+            while position > 0 and best_distance[position - 1] > distance:
+                best_distance[position] = best_distance[position - 1]
+                best_index[position] = best_index[position - 1]
+                position -= 1
+            best_distance[position] = distance
+            best_index[position] = t
+
+
+def nearest_templates(
+    dots: np.ndarray,
+    candidate_sq_norms: np.ndarray,
+    template_sq_norms: np.ndarray,
+    k: int,
+) -> tuple[np.ndarray, np.ndarray]:
+    """The ``k`` nearest templates of every candidate in squared Euclidean distance.
+
+    The distance is expanded as ``|y|^2 + |t|^2 - 2 y.t`` (clamped at 0), so
+    only the precomputed inner products are read. Each candidate keeps a
+    sorted buffer of its ``k`` best templates (insertion, ``O(n_templates k)``
+    worst case) instead of sorting all distances.
+
+    Parameters
+    ----------
+    dots : ndarray, shape (n_candidates, n_templates), float64
+        Candidate-template inner products (:func:`candidate_template_dots`).
+    candidate_sq_norms : ndarray, shape (n_candidates,), float64
+        Squared norms of the candidates.
+    template_sq_norms : ndarray, shape (n_templates,), float64
+        Squared norms of the templates (e.g. the diagonal of :func:`template_gram`).
+    k : int
+        Number of neighbours, ``1 <= k <= n_templates``.
+
+    Returns
+    -------
+    indices : ndarray, shape (n_candidates, k), int64
+        Template indices sorted by ascending distance; ties are broken by the
+        lower template index, so the result is deterministic (it equals a
+        stable argsort of the distances, truncated to ``k``). NaN distances
+        rank last.
+    sq_distances : ndarray, shape (n_candidates, k), float64
+        The matching squared distances, ascending.
+    """
+    _check_array("dots", dots, (np.dtype(np.float64),), 2)
+    _check_array("candidate_sq_norms", candidate_sq_norms, (np.dtype(np.float64),), 1)
+    _check_array("template_sq_norms", template_sq_norms, (np.dtype(np.float64),), 1)
+    n_candidates, n_templates = dots.shape
+    if candidate_sq_norms.shape[0] != n_candidates:
+        raise ParameterError(
+            f"candidate_sq_norms has {candidate_sq_norms.shape[0]} entries, dots has {n_candidates} rows"
+        )
+    if template_sq_norms.shape[0] != n_templates:
+        raise ParameterError(
+            f"template_sq_norms has {template_sq_norms.shape[0]} entries, dots has {n_templates} columns"
+        )
+    if isinstance(k, (bool, np.bool_)) or not isinstance(k, (int, np.integer)):
+        raise ParameterError(f"k must be an integer, got {k!r}")
+    k = int(k)
+    if not 1 <= k <= n_templates:
+        raise ParameterError(f"k must be in [1, n_templates={n_templates}], got {k}")
+    indices = np.empty((n_candidates, k), dtype=np.int64)
+    sq_distances = np.empty((n_candidates, k), dtype=np.float64)
+    _nearest_templates(dots, candidate_sq_norms, template_sq_norms, indices, sq_distances)
+    return indices, sq_distances

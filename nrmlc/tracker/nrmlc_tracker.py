@@ -1,0 +1,314 @@
+"""The NRMLC tracker (Algorithms 1 and 2 of the paper).
+
+Per frame:
+
+1. draw ``n_particles`` states from a Gaussian around the previous estimate;
+2. warp them into unit-norm 32x32 patch vectors (:mod:`nrmlc.kernels.warp`);
+3. find each candidate's ``k_max`` nearest templates among ``[T_pos, T_neg]``
+   (:mod:`nrmlc.kernels.distance`), which gives the nested local dictionaries
+   B^1..B^m of sizes k_1..k_m;
+4. code the candidate on each dictionary (approximated LLC, eq. allcr / allcn / allc)
+   and combine the codes with dictionary weights w (Algorithm 1, eq. allcw)
+   (:mod:`nrmlc.kernels.coding`);
+5. score each candidate with h = exp(-alpha (eps_pos - eps_neg)) and keep the best;
+6. every ``update_interval`` frames, resample the negative templates around the
+   estimate and, unless the target is judged occluded (LEN(neg*) too large),
+   add the result to the positive templates when eps_pos* < threshold.
+"""
+from __future__ import annotations
+
+import warnings
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+
+from nrmlc.errors import DataError, ParameterError
+from nrmlc.geometry import box_to_state, state_to_affine, state_to_box
+from nrmlc.kernels.coding import combine_dictionaries, encode_dictionaries
+from nrmlc.kernels.distance import candidate_template_dots, nearest_templates, template_gram
+from nrmlc.kernels.warp import warp_patches
+from nrmlc.tracker.params import TrackerParams
+from nrmlc.tracker.templates import negative_states, positive_states
+
+MIN_BOX_SIZE = 4.0
+
+
+def as_gray_frame(image: np.ndarray) -> np.ndarray:
+    """Any numpy image (gray, BGR, BGRA; uint8, uint16 or float) as a C-contiguous
+    float32 gray frame. Intensity scale does not matter: patches are normalised.
+
+    Returns
+    -------
+    frame : (height, width) float32
+    """
+    if not isinstance(image, np.ndarray):
+        raise ParameterError(f"frame must be a numpy array, got {type(image).__name__}")
+    if image.ndim == 3 and image.shape[2] == 1:
+        image = image[:, :, 0]
+    if image.ndim == 3 and image.shape[2] in (3, 4):
+        code = cv2.COLOR_BGR2GRAY if image.shape[2] == 3 else cv2.COLOR_BGRA2GRAY
+        if image.dtype not in (np.uint8, np.uint16, np.float32):
+            image = image.astype(np.float32)
+        image = cv2.cvtColor(image, code)
+    if image.ndim != 2 or image.shape[0] < 2 or image.shape[1] < 2:
+        raise ParameterError(f"frame must be a gray or BGR(A) image of at least 2x2 pixels, got shape {image.shape}")
+    if image.dtype == np.uint8:
+        frame = image.astype(np.float32) / 255.0
+    elif image.dtype == np.uint16:
+        frame = image.astype(np.float32) / 65535.0
+    elif np.issubdtype(image.dtype, np.number) and not np.issubdtype(image.dtype, np.complexfloating):
+        frame = image.astype(np.float32)
+    else:
+        raise ParameterError(f"frame has unsupported dtype {image.dtype}")
+    if not np.all(np.isfinite(frame)):
+        raise ParameterError("frame contains NaN or infinite values")
+    return np.ascontiguousarray(frame)
+
+
+def clip_initial_box(box, frame_shape) -> np.ndarray:
+    """Validate the initial box against the frame: clip it (with a warning) when it is
+    partly outside; refuse it when it is wholly outside or smaller than 4 px.
+
+    Returns
+    -------
+    box : (4,) float64, 1-based OTB ``(x, y, w, h)``
+    """
+    box = np.asarray(box, dtype=np.float64).reshape(-1)
+    if box.shape != (4,) or not np.all(np.isfinite(box)):
+        raise ParameterError(f"initial box must be 4 finite numbers (x, y, w, h), got {box.tolist()}")
+    height, width = frame_shape
+    x0, y0 = box[0], box[1]
+    x1, y1 = x0 + box[2], y0 + box[3]
+    if box[2] <= 0 or box[3] <= 0:
+        raise ParameterError(f"initial box {box.tolist()} has a non-positive size")
+    # 1-based boxes: the frame spans [1, width + 1) x [1, height + 1).
+    cx0, cy0, cx1, cy1 = max(x0, 1.0), max(y0, 1.0), min(x1, width + 1.0), min(y1, height + 1.0)
+    if cx1 <= cx0 or cy1 <= cy0:
+        raise ParameterError(f"initial box {box.tolist()} lies wholly outside the {width}x{height} frame")
+    clipped = np.array([cx0, cy0, cx1 - cx0, cy1 - cy0])
+    if not np.array_equal(clipped, box):
+        warnings.warn(f"initial box {box.tolist()} is partly outside the {width}x{height} frame; "
+                      f"clipped to {clipped.round(2).tolist()}")
+    if clipped[2] < MIN_BOX_SIZE or clipped[3] < MIN_BOX_SIZE:
+        raise ParameterError(f"initial box {clipped.round(2).tolist()} is smaller than {MIN_BOX_SIZE:g} px")
+    return clipped
+
+
+@dataclass
+class FrameResult:
+    """What the tracker computed on one frame (the per-frame diagnostics).
+
+    Attributes
+    ----------
+    state : (6,) float64, box : (4,) float64
+        Estimate (state) and its 1-based OTB box.
+    confidence : float
+        h of the best candidate.
+    error_positive, error_negative : float
+        eps_pos*, eps_neg* of the best candidate (squared errors of unit vectors).
+    template_indices : (k_max,) int64
+        The best candidate's nearest templates (indices into [T_pos, T_neg]).
+    codes : (k_max,) float64
+        Its output code d on those templates (zero elsewhere).
+    coefficients : (m, k_max) float64, weights : (m,) float64
+        Its per-dictionary codes c^j and dictionary weights w.
+    n_positive_templates, n_templates : int
+        Template counts at this frame (indices < n_positive_templates are positive).
+    n_negative_used : int
+        LEN(neg*): negative templates with a non-zero code.
+    occluded : bool
+        LEN(neg*) > occlusion_max_negative.
+    code_sum_positive, code_sum_negative : float
+        Sums of the best candidate's codes on positive / negative templates.
+    negative_share_c, negative_share_w : float
+        Share of negative entries among all candidates' c (within each k_j) and w.
+    updated_positive : bool
+        Whether this frame's result was added to the positive templates.
+    """
+
+    state: np.ndarray
+    box: np.ndarray
+    confidence: float
+    error_positive: float
+    error_negative: float
+    template_indices: np.ndarray
+    codes: np.ndarray
+    coefficients: np.ndarray
+    weights: np.ndarray
+    n_positive_templates: int
+    n_templates: int
+    n_negative_used: int
+    occluded: bool
+    code_sum_positive: float
+    code_sum_negative: float
+    negative_share_c: float
+    negative_share_w: float
+    updated_positive: bool = False
+
+
+class NRMLCTracker:
+    """NRMLC tracker with the got10k Tracker interface (``init`` / ``update``).
+
+    Parameters
+    ----------
+    seed : int
+        Seed of the tracker's random generator (templates and particles). The
+        same seed gives the same boxes, whatever the thread count.
+    params : TrackerParams, optional
+        Full parameter set; keyword arguments override single fields.
+    **overrides
+        Any :class:`TrackerParams` field, e.g. ``n_particles=300, coding="constrained"``.
+
+    Examples
+    --------
+    >>> tracker = NRMLCTracker(seed=0)
+    >>> tracker.init(first_frame, (x, y, w, h))
+    >>> box = tracker.update(next_frame)
+    """
+
+    name = "NRMLC"
+
+    def __init__(self, seed: int = 0, params: TrackerParams | None = None, **overrides) -> None:
+        base = params if params is not None else TrackerParams()
+        self.params = base.replace(**overrides) if overrides else base
+        if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
+            raise ParameterError(f"parameter seed: must be a non-negative integer, got {seed!r}")
+        self.seed = int(seed)
+        self.rng = np.random.default_rng(self.seed)
+        self.frame_index = -1
+        self.state: np.ndarray | None = None
+        self.last: FrameResult | None = None
+        self.last_candidates: dict | None = None
+
+    # -- templates -------------------------------------------------------
+    def _warp(self, frame: np.ndarray, states: np.ndarray) -> np.ndarray:
+        return warp_patches(frame, np.ascontiguousarray(state_to_affine(states)), self.params.patch_size)
+
+    def _set_templates(self, positives: np.ndarray, negatives: np.ndarray) -> None:
+        self.positive_templates = positives
+        self.negative_templates = negatives
+        self.templates = np.ascontiguousarray(np.vstack([positives, negatives]))
+        self.template_gram = template_gram(self.templates)
+        self.template_sq_norms = np.ascontiguousarray(np.diag(self.template_gram))
+
+    def _sample_negatives(self, frame: np.ndarray, state: np.ndarray) -> np.ndarray:
+        p = self.params
+        states = negative_states(self.rng, state, p.n_negative, p.positive_radius, p.negative_radius)
+        return self._warp(frame, states)
+
+    # -- public interface -----------------------------------------------
+    def init(self, image: np.ndarray, box) -> None:
+        """Start tracking the target in ``box`` (1-based x, y, w, h) of ``image``."""
+        frame = as_gray_frame(image)
+        box = clip_initial_box(box, frame.shape)
+        p = self.params
+        self.rng = np.random.default_rng(self.seed)
+        self.state = box_to_state(box, p.patch_size)
+        self.initial_box = box
+        positives = self._warp(frame, positive_states(self.rng, self.state, p.n_positive, p.positive_radius))
+        self._set_templates(positives, self._sample_negatives(frame, self.state))
+        self.frame_index = 0
+        self.last = None
+
+    def update(self, image: np.ndarray) -> np.ndarray:
+        """Track into the next frame; returns the 1-based ``(x, y, w, h)`` box."""
+        if self.state is None:
+            raise ParameterError("call init(frame, box) before update(frame)")
+        frame = as_gray_frame(image)
+        self.frame_index += 1
+        result = self.step(frame)
+        if (self.frame_index + 1) % self.params.update_interval == 0:
+            self._update_templates(frame, result)
+        return result.box
+
+    # -- one frame -------------------------------------------------------
+    def sample_particles(self) -> np.ndarray:
+        """(n_particles, 6) states drawn around the current estimate."""
+        p = self.params
+        noise = self.rng.standard_normal((p.n_particles, 6)) * np.asarray(p.motion_sigmas)
+        states = np.tile(self.state, (p.n_particles, 1))
+        states[:, 0:2] += noise[:, 0:2]
+        states[:, 2] *= np.exp(noise[:, 2])
+        states[:, 3] += noise[:, 3]
+        states[:, 4] *= np.exp(noise[:, 4])
+        states[:, 5] += noise[:, 5]
+        return states
+
+    def encode(self, candidates: np.ndarray) -> dict:
+        """Code candidate vectors on the current templates (Algorithm 1 for each).
+
+        Parameters
+        ----------
+        candidates : (n_candidates, patch_size**2) float32, unit-norm rows
+
+        Returns
+        -------
+        dict with ``dots (n, n_templates)``, ``neighbours (n, k_max)``,
+        ``coefficients (n, m, k_max)``, ``weights (n, m)``, ``codes (n, k_max)``,
+        ``error_positive (n,)``, ``error_negative (n,)``, ``confidence (n,)``.
+        """
+        p = self.params
+        ridge_c, ridge_w = p.ridges
+        constrained = p.coding == "constrained"
+        sizes = np.asarray(p.dictionary_sizes, dtype=np.int64)
+        dots = candidate_template_dots(candidates, self.templates)
+        sq_norms = np.einsum("ij,ij->i", candidates, candidates, dtype=np.float64)
+        neighbours, _ = nearest_templates(dots, sq_norms, self.template_sq_norms, p.k_max)
+        coefficients = encode_dictionaries(self.template_gram, dots, sq_norms, neighbours, sizes, ridge_c, constrained)
+        weights, codes, error_positive, error_negative = combine_dictionaries(
+            self.template_gram, dots, sq_norms, neighbours, coefficients, sizes,
+            len(self.positive_templates), ridge_w, constrained, p.n_iterations)
+        sign = -1.0 if p.confidence == "corrected" else 1.0
+        # Only the ranking matters for the estimate; the exponent is kept to report h.
+        confidence = np.exp(sign * p.alpha * (error_positive - error_negative))
+        return dict(dots=dots, neighbours=neighbours, coefficients=coefficients, weights=weights, codes=codes,
+                    error_positive=error_positive, error_negative=error_negative, confidence=confidence)
+
+    def step(self, frame: np.ndarray) -> FrameResult:
+        """Estimate the target in ``frame`` (no template update)."""
+        p = self.params
+        states = self.sample_particles()
+        candidates = self._warp(frame, states)
+        coded = self.encode(candidates)
+        best = int(np.argmax(coded["confidence"]))
+        n_pos = len(self.positive_templates)
+        indices = coded["neighbours"][best]
+        codes = coded["codes"][best]
+        negative = indices >= n_pos
+        n_negative_used = int(np.count_nonzero(np.abs(codes[negative]) > p.coefficient_tolerance))
+        sizes = np.asarray(p.dictionary_sizes)
+        within = np.arange(p.k_max)[None, :] < sizes[:, None]  # (m, k_max): entries of each c^j
+        coefficient_values = coded["coefficients"][:, within]
+        self.state = states[best]
+        result = FrameResult(
+            state=self.state.copy(), box=state_to_box(self.state, p.patch_size),
+            confidence=float(coded["confidence"][best]),
+            error_positive=float(coded["error_positive"][best]), error_negative=float(coded["error_negative"][best]),
+            template_indices=indices.copy(), codes=codes.copy(), coefficients=coded["coefficients"][best].copy(),
+            weights=coded["weights"][best].copy(), n_positive_templates=n_pos, n_templates=len(self.templates),
+            n_negative_used=n_negative_used, occluded=n_negative_used > p.occlusion_max_negative,
+            code_sum_positive=float(codes[~negative].sum()), code_sum_negative=float(codes[negative].sum()),
+            negative_share_c=float(np.mean(coefficient_values < 0)),
+            negative_share_w=float(np.mean(coded["weights"] < 0)),
+        )
+        self.last = result
+        self.last_candidates = dict(coded, states=states, patches=candidates, best=best)
+        return result
+
+    def _update_templates(self, frame: np.ndarray, result: FrameResult) -> None:
+        """Algorithm 2, step 2.5: negatives always; positives unless occluded."""
+        p = self.params
+        negatives = self._sample_negatives(frame, self.state)
+        positives = self.positive_templates
+        blocked = p.occlusion_detection and result.occluded
+        if not blocked and result.error_positive < p.update_error_threshold:
+            new = self.last_candidates["patches"][self.last_candidates["best"]][None, :]
+            if len(positives) < p.max_positive:
+                positives = np.vstack([positives, new])
+            else:
+                closest = int(np.argmin(((positives - new) ** 2).sum(axis=1)))
+                positives = positives.copy()
+                positives[closest] = new[0]
+            result.updated_positive = True
+        self._set_templates(positives, negatives)

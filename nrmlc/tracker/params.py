@@ -1,0 +1,202 @@
+"""Tracker parameters: one dataclass, the paper's defaults, validated on construction."""
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass, field
+
+from nrmlc.config import PATCH_SIZE
+from nrmlc.errors import ParameterError
+
+CODING_MODES = ("regularized", "constrained", "plain")
+CONFIDENCE_FORMS = ("corrected", "literal")
+
+#: Largest local dictionary the compiled solvers accept.
+MAX_DICTIONARY_SIZE = 16
+
+
+@dataclass(frozen=True)
+class TrackerParams:
+    """All parameters of the NRMLC tracker (Sec. 3 and 4 of the paper).
+
+    Defaults are the paper's where it gives a value; the others (marked *ours*)
+    are documented choices, identical for every sequence.
+
+    Attributes
+    ----------
+    n_particles : int
+        Particles per frame, N (paper: not given; the classic sparse trackers use 600).
+    motion_sigmas : tuple of 6 float
+        Std of the Gaussian motion model for ``[cx px, cy px, log scale, rotation rad,
+        log aspect, skew rad]`` (*ours*: the classic ``[4, 4, 0.01, 0, 0.005, 0]``,
+        with scale and aspect perturbed multiplicatively, so the spread does not
+        depend on the target's size).
+    n_positive, n_negative : int
+        Initial template counts p = 50 and n = 150 (paper).
+    positive_radius, negative_radius : float
+        r and s of Sec. 3: positive template centres lie within r of the target's
+        centre, negative ones in the annulus r < d < s. The paper gives neither;
+        *ours*: r = 2 and s = 16, in template pixels (1/32 of the target's width
+        along x, of its height along y), so they follow the target's size.
+    dictionary_sizes : tuple of int
+        k_1..k_m of the multiple local dictionaries (paper: 5, 8, 10).
+    coding : {'regularized', 'constrained', 'plain'}
+        'regularized' solves eq. (allcr)/(allcw) with ``lam``/``beta`` (the paper);
+        'constrained' solves eq. (allcn)/(multillc) exactly (c >= 0, sum 1; no ridge);
+        'plain' solves eq. (allc), only sum to one (lambda = beta = 0).
+    lam, beta : float
+        l2 weights for the coefficients c and the dictionary weights w (paper: 1, 0.1).
+        Used by 'regularized' only.
+    n_iterations : int
+        T of Algorithm 1 (paper: 3).
+    alpha : float
+        Confidence scale (paper: 2.5). It does not change which candidate wins.
+    confidence : {'corrected', 'literal'}
+        'corrected': h = exp(-alpha (eps_pos - eps_neg)); 'literal': the printed
+        h = 1 / exp(-alpha (eps_pos - eps_neg)) (see the README's deviations).
+    update_interval : int
+        Templates are updated every this many frames (paper: 5).
+    max_positive : int
+        Cap on positive templates; beyond it the closest one is replaced (paper: 100).
+    update_error_threshold : float
+        A result joins the positives only if eps_pos* is below this (paper: 0.1).
+        eps is a squared error between unit-norm 1024-vectors, in [0, 4].
+    occlusion_detection : bool
+        Block positive updates while the target is judged occluded.
+    occlusion_max_negative : int
+        Occluded when LEN(neg*) exceeds this (Algorithm 2: update iff LEN <= 2).
+    coefficient_tolerance : float
+        A template "is used" by the best candidate when its coefficient's magnitude
+        exceeds this (for LEN(neg*)).
+    patch_size : int
+        Templates and candidates are patch_size x patch_size (paper: 32).
+    """
+
+    n_particles: int = 600
+    motion_sigmas: tuple = (4.0, 4.0, 0.01, 0.0, 0.005, 0.0)
+    n_positive: int = 50
+    n_negative: int = 150
+    positive_radius: float = 2.0
+    negative_radius: float = 16.0
+    dictionary_sizes: tuple = (5, 8, 10)
+    coding: str = "regularized"
+    lam: float = 1.0
+    beta: float = 0.1
+    n_iterations: int = 3
+    alpha: float = 2.5
+    confidence: str = "corrected"
+    update_interval: int = 5
+    max_positive: int = 100
+    update_error_threshold: float = 0.1
+    occlusion_detection: bool = True
+    occlusion_max_negative: int = 2
+    coefficient_tolerance: float = 1e-6
+    patch_size: int = PATCH_SIZE
+
+    def __post_init__(self) -> None:
+        def fail(name: str, message: str) -> None:
+            raise ParameterError(f"parameter {name}: {message}")
+
+        # Normalise sequences to tuples so params stay hashable and comparable.
+        object.__setattr__(self, "motion_sigmas", tuple(float(v) for v in self.motion_sigmas))
+        object.__setattr__(self, "dictionary_sizes", tuple(int(v) for v in self.dictionary_sizes))
+        for name in ("n_particles", "n_positive", "n_negative", "n_iterations", "update_interval",
+                     "max_positive", "occlusion_max_negative", "patch_size"):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, int):
+                fail(name, f"must be an integer, got {value!r}")
+        for name in ("positive_radius", "negative_radius", "lam", "beta", "alpha",
+                     "update_error_threshold", "coefficient_tolerance"):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+                fail(name, f"must be a finite number, got {value!r}")
+        if self.n_particles < 1:
+            fail("n_particles", f"must be >= 1, got {self.n_particles}")
+        if len(self.motion_sigmas) != 6 or any(not math.isfinite(v) or v < 0 for v in self.motion_sigmas):
+            fail("motion_sigmas", f"must be 6 finite non-negative numbers, got {self.motion_sigmas}")
+        if self.n_positive < 1:
+            fail("n_positive", f"must be >= 1, got {self.n_positive}")
+        if self.n_negative < 0:
+            fail("n_negative", f"must be >= 0, got {self.n_negative}")
+        if not 0 <= self.positive_radius < self.negative_radius:
+            fail("negative_radius", f"need 0 <= positive_radius < negative_radius, got "
+                                    f"{self.positive_radius} and {self.negative_radius}")
+        if not self.dictionary_sizes:
+            fail("dictionary_sizes", "needs at least one dictionary size")
+        n_templates = self.n_positive + self.n_negative
+        for k in self.dictionary_sizes:
+            if k < 1 or k > MAX_DICTIONARY_SIZE:
+                fail("dictionary_sizes", f"each k must be in 1..{MAX_DICTIONARY_SIZE}, got {k}")
+            if k > n_templates:
+                fail("dictionary_sizes", f"k = {k} is larger than the template count {n_templates}")
+        if self.coding not in CODING_MODES:
+            fail("coding", f"unknown mode {self.coding!r}; choose one of {', '.join(CODING_MODES)}")
+        if self.confidence not in CONFIDENCE_FORMS:
+            fail("confidence", f"unknown form {self.confidence!r}; choose one of {', '.join(CONFIDENCE_FORMS)}")
+        if self.lam < 0:
+            fail("lam", f"must be >= 0, got {self.lam}")
+        if self.beta < 0:
+            fail("beta", f"must be >= 0, got {self.beta}")
+        if self.n_iterations < 0:
+            fail("n_iterations", f"must be >= 0, got {self.n_iterations}")
+        if self.alpha <= 0:
+            fail("alpha", f"must be > 0, got {self.alpha}")
+        if self.update_interval < 1:
+            fail("update_interval", f"must be >= 1, got {self.update_interval}")
+        if self.max_positive < self.n_positive:
+            fail("max_positive", f"must be >= n_positive ({self.n_positive}), got {self.max_positive}")
+        if self.coefficient_tolerance < 0:
+            fail("coefficient_tolerance", f"must be >= 0, got {self.coefficient_tolerance}")
+        if self.patch_size < 4:
+            fail("patch_size", f"must be >= 4, got {self.patch_size}")
+
+    @property
+    def k_max(self) -> int:
+        return max(self.dictionary_sizes)
+
+    @property
+    def ridges(self) -> tuple[float, float]:
+        """(ridge on c, ridge on w) actually used by the coding mode."""
+        return (self.lam, self.beta) if self.coding == "regularized" else (0.0, 0.0)
+
+    def replace(self, **changes) -> "TrackerParams":
+        """A copy with some fields changed (validated)."""
+        unknown = set(changes) - {f.name for f in dataclasses.fields(self)}
+        if unknown:
+            raise ParameterError(f"unknown parameter(s): {', '.join(sorted(unknown))}")
+        return dataclasses.replace(self, **changes)
+
+    def as_dict(self) -> dict:
+        return dataclasses.asdict(self)
+
+
+def parse_param_assignment(text: str) -> tuple[str, object]:
+    """Parse a ``name=value`` string (CLI ``--param``) into a typed pair.
+
+    The value's type follows the field's default: int, float, bool, str, or a
+    comma-separated tuple.
+    """
+    if "=" not in text:
+        raise ParameterError(f"--param {text!r}: expected name=value")
+    name, raw = (part.strip() for part in text.split("=", 1))
+    defaults = {f.name: f.default for f in dataclasses.fields(TrackerParams)}
+    if name not in defaults:
+        raise ParameterError(f"--param {text!r}: unknown parameter {name!r}")
+    default = defaults[name]
+    try:
+        if isinstance(default, bool):
+            if raw.lower() not in ("true", "false", "1", "0", "yes", "no", "on", "off"):
+                raise ValueError
+            value: object = raw.lower() in ("true", "1", "yes", "on")
+        elif isinstance(default, int):
+            value = int(raw)
+        elif isinstance(default, float):
+            value = float(raw)
+        elif isinstance(default, tuple):
+            element = type(default[0])
+            value = tuple(element(v) for v in raw.split(",") if v.strip())
+        else:
+            value = raw
+    except ValueError:
+        raise ParameterError(f"--param {text!r}: cannot read {raw!r} as {type(default).__name__}") from None
+    return name, value

@@ -1,0 +1,21 @@
+"""Shared pytest fixtures."""
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import pytest
+
+REPO_ROOT = Path(__file__).resolve().parent.parent
+
+
+@pytest.fixture(scope="session")
+def real_data_root() -> Path:
+    """The real sequences folder: ``$NRMLC_DATA``, else ``<repo>/../shared/data/sequences``.
+
+    Tests using it are skipped (with the path in the reason) when it is absent.
+    """
+    root = Path(os.environ.get("NRMLC_DATA", "").strip() or REPO_ROOT.parent / "shared" / "data" / "sequences")
+    if not root.is_dir():
+        pytest.skip(f"real data not found at {root} (set NRMLC_DATA)")
+    return root

@@ -1,0 +1,372 @@
+"""Tests for nrmlc.data: OTB folders, sparse-tracker packs, Sequence."""
+from __future__ import annotations
+
+import warnings
+from pathlib import Path
+
+import cv2
+import numpy as np
+import pytest
+import scipy.io
+
+from nrmlc.data import Sequence, list_sequences, open_sequence, read_box_file, read_sparsepack_groundtruth
+from nrmlc.data.sparsepack import read_datainfo
+from nrmlc.errors import DataError, ParameterError
+
+FRAME_SHAPE = (6, 8)  # (H, W) of the tiny test frames
+
+
+def make_sequence_folder(
+    folder: Path,
+    n_frames: int = 3,
+    groundtruth: str | None = "",
+    names: list[str] | None = None,
+    images: list[np.ndarray] | None = None,
+) -> Path:
+    """An OTB folder of gray frames (pixels of the k-th name all equal 10 * k).
+
+    ``groundtruth`` is the text of groundtruth_rect.txt: "" (default) writes
+    one box per frame, None writes no file.
+    """
+    (folder / "img").mkdir(parents=True)
+    names = names or [f"{i:04d}.png" for i in range(1, n_frames + 1)]
+    for index, name in enumerate(names):
+        image = images[index] if images is not None else np.full(FRAME_SHAPE, 10 * (index + 1), np.uint8)
+        assert cv2.imwrite(str(folder / "img" / name), image)
+    if groundtruth == "":  # default: one box per frame
+        groundtruth = gt_lines(len(names))
+    if groundtruth is not None:
+        (folder / "groundtruth_rect.txt").write_bytes(groundtruth.encode())
+    return folder
+
+
+def gt_lines(n: int) -> str:
+    return "".join(f"{i + 1},2,3,4\n" for i in range(n))
+
+
+# ------------------------------------------------------------ box files
+@pytest.mark.parametrize(
+    "text",
+    [
+        "1,2,3,4\n5,6,7,8\n",
+        "1\t2\t3\t4\n5\t6\t7\t8\n",
+        "1 2  3 4\n5 6 7   8\n",
+        "1,2,3,4\r\n5,6,7,8\r\n",
+        "1,2,3,4\n5,6,7,8",
+        "1, 2,\t3 ,4\r\n5,6,7,8\n\n",
+    ],
+    ids=["comma", "tab", "spaces", "crlf", "no-final-newline", "mixed"],
+)
+def test_groundtruth_delimiters(tmp_path, text):
+    folder = make_sequence_folder(tmp_path / "Seq", n_frames=2, groundtruth=text)
+    sequence = open_sequence(folder)
+    np.testing.assert_array_equal(sequence.groundtruth, [[1, 2, 3, 4], [5, 6, 7, 8]])
+    assert sequence.groundtruth.dtype == np.float64
+
+
+def test_unannotated_rows_are_nan(tmp_path):
+    folder = make_sequence_folder(tmp_path / "Seq", n_frames=4, groundtruth="1,2,3,4\n0,0,0,0\nNaN,NaN,NaN,NaN\n5,6,7,8\n")
+    sequence = open_sequence(folder)
+    assert sequence.annotated.tolist() == [True, False, False, True]
+    assert np.isnan(sequence.groundtruth[1:3]).all()
+
+
+# --------------------------------------------------------- OTB folders
+def test_frames_sorted_by_number_not_name(tmp_path):
+    folder = make_sequence_folder(tmp_path / "Seq", names=["10.png", "2.png", "1.png"])
+    sequence = open_sequence(folder)
+    assert [p.name for p in sequence.image_paths] == ["1.png", "2.png", "10.png"]
+    # make_sequence_folder filled 10.png with 10, 2.png with 20, 1.png with 30.
+    assert [float(f[0, 0]) * 255 for f in sequence] == pytest.approx([30, 20, 10])
+
+
+def test_sequence_interface(tmp_path):
+    folder = make_sequence_folder(tmp_path / "Seq", n_frames=3, groundtruth=gt_lines(3))
+    sequence = open_sequence(folder)
+    assert sequence.name == "Seq" and sequence.path == folder
+    assert len(sequence) == 3
+    assert sequence.frame_size == FRAME_SHAPE
+    np.testing.assert_array_equal(sequence.init_box, [1, 2, 3, 4])
+    frame = sequence.frame(1)
+    assert frame.dtype == np.float32 and frame.shape == FRAME_SHAPE
+    assert frame[0, 0] == pytest.approx(20 / 255)
+    assert sequence.frame(-1)[0, 0] == pytest.approx(30 / 255)
+    with pytest.raises(IndexError):
+        sequence.frame(3)
+
+
+def test_multi_target_folders(tmp_path):
+    folder = make_sequence_folder(tmp_path / "Jog", n_frames=2, groundtruth=None)
+    (folder / "groundtruth_rect.1.txt").write_text(gt_lines(2))
+    (folder / "groundtruth_rect.2.txt").write_text("5,5,2,2\n6,6,2,2\n")
+    make_sequence_folder(tmp_path / "Alone", n_frames=2, groundtruth=gt_lines(2))
+    (tmp_path / "notes").mkdir()  # not a sequence: skipped silently
+
+    names = [s.name for s in list_sequences(tmp_path)]
+    assert names == ["Alone", "Jog-1", "Jog-2"]
+    assert open_sequence(folder).name == "Jog-1"
+    second = open_sequence(folder, target=2)
+    assert second.name == "Jog-2"
+    np.testing.assert_array_equal(second.init_box, [5, 5, 2, 2])
+    by_name = open_sequence(tmp_path / "Jog-2")
+    assert by_name.name == "Jog-2" and by_name.path == folder
+    with pytest.raises(DataError, match="groundtruth_rect.3.txt"):
+        open_sequence(folder, target=3)
+
+
+def test_iteration_is_lazy(tmp_path):
+    folder = make_sequence_folder(tmp_path / "Seq", n_frames=3, groundtruth=gt_lines(3))
+    sequence = open_sequence(folder)
+    (folder / "img" / "0003.png").write_bytes(b"not a png")
+    frames = iter(sequence)
+    next(frames), next(frames)  # frames 1 and 2 read fine: nothing was read ahead
+    with pytest.raises(DataError, match="0003.png"):
+        next(frames)
+
+
+# -------------------------------------------------------- pixel formats
+def test_image_formats(tmp_path):
+    rng = np.random.default_rng(0)
+    bgr = rng.integers(0, 256, (*FRAME_SHAPE, 3), dtype=np.uint8)
+    bgra = np.dstack([bgr, np.full(FRAME_SHAPE, 128, np.uint8)])
+    gray16 = rng.integers(0, 65536, FRAME_SHAPE, dtype=np.uint16)
+    bgr16 = rng.integers(0, 65536, (*FRAME_SHAPE, 3), dtype=np.uint16)
+    gray8 = rng.integers(0, 256, FRAME_SHAPE, dtype=np.uint8)
+    images = [gray8, bgr, bgra, gray16, bgr16]
+    folder = make_sequence_folder(tmp_path / "Seq", n_frames=5, groundtruth=gt_lines(5), images=images)
+    sequence = open_sequence(folder)
+
+    expected_gray = [
+        gray8 / 255.0,
+        cv2.cvtColor(bgr.astype(np.float32) / 255, cv2.COLOR_BGR2GRAY),
+        cv2.cvtColor(bgr.astype(np.float32) / 255, cv2.COLOR_BGR2GRAY),  # alpha ignored
+        gray16 / 65535.0,
+        cv2.cvtColor(bgr16.astype(np.float32) / 65535, cv2.COLOR_BGR2GRAY),
+    ]
+    for index, expected in enumerate(expected_gray):
+        frame = sequence.frame(index)
+        assert frame.dtype == np.float32 and frame.shape == FRAME_SHAPE
+        assert 0.0 <= frame.min() and frame.max() <= 1.0
+        np.testing.assert_allclose(frame, expected, atol=1e-6)
+
+    for index in range(5):
+        color = sequence.color_frame(index)
+        assert color.dtype == np.uint8 and color.shape == (*FRAME_SHAPE, 3)
+    np.testing.assert_array_equal(sequence.color_frame(0)[:, :, 1], gray8)
+    np.testing.assert_array_equal(sequence.color_frame(1), bgr)
+    np.testing.assert_array_equal(sequence.color_frame(2), bgr)
+    np.testing.assert_allclose(sequence.color_frame(3)[:, :, 0], gray16 / 257.0, atol=0.5 + 1e-9)
+
+
+def test_jpeg_and_bmp_frames(tmp_path):
+    images = [np.full(FRAME_SHAPE, 100, np.uint8)] * 3
+    folder = make_sequence_folder(tmp_path / "Seq", names=["1.jpg", "2.BMP", "3.jpeg"], images=images)
+    sequence = open_sequence(folder)
+    assert len(sequence) == 3
+    assert all(abs(float(f.mean()) - 100 / 255) < 3 / 255 for f in sequence)
+
+
+# --------------------------------------------------------- ground truth
+def test_fewer_groundtruth_lines_warns_and_pads(tmp_path):
+    folder = make_sequence_folder(tmp_path / "Seq", n_frames=4, groundtruth=gt_lines(2))
+    with pytest.warns(UserWarning, match=r"groundtruth_rect\.txt.*2 ground-truth boxes for 4 frames"):
+        sequence = open_sequence(folder)
+    assert sequence.groundtruth.shape == (4, 4)
+    assert sequence.annotated.tolist() == [True, True, False, False]
+
+
+def test_more_groundtruth_lines_warns_and_truncates(tmp_path):
+    folder = make_sequence_folder(tmp_path / "Seq", n_frames=2, groundtruth=gt_lines(5))
+    with pytest.warns(UserWarning, match=r"groundtruth_rect\.txt.*extra boxes ignored"):
+        sequence = open_sequence(folder)
+    np.testing.assert_array_equal(sequence.groundtruth[:, 0], [1, 2])
+
+
+def test_matching_groundtruth_does_not_warn(tmp_path):
+    folder = make_sequence_folder(tmp_path / "Seq", n_frames=3, groundtruth=gt_lines(3))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        open_sequence(folder)
+
+
+def test_missing_groundtruth_needs_an_init_box(tmp_path):
+    folder = make_sequence_folder(tmp_path / "Seq", groundtruth=None)
+    sequence = open_sequence(folder)
+    assert np.isnan(sequence.groundtruth).all() and not sequence.annotated.any()
+    with pytest.raises(DataError, match="no ground truth"):
+        sequence.init_box
+    given = sequence.with_init_box([2, 2, 3, 3])
+    np.testing.assert_array_equal(given.init_box, [2, 2, 3, 3])
+    with pytest.raises(DataError):
+        sequence.init_box  # the original is unchanged
+    np.testing.assert_array_equal(open_sequence(folder, init_box=(1, 1, 2, 2)).init_box, [1, 1, 2, 2])
+    with pytest.raises(ParameterError):
+        sequence.with_init_box([1, 1, 0, 2])
+
+
+@pytest.mark.parametrize("first_line", ["0,0,0,0", "NaN,NaN,NaN,NaN", "3,3,0,5"])
+def test_unusable_first_box_names_the_file(tmp_path, first_line):
+    folder = make_sequence_folder(tmp_path / "Seq", n_frames=2, groundtruth=f"{first_line}\n1,1,2,2\n")
+    sequence = open_sequence(folder)
+    with pytest.raises(DataError, match="groundtruth_rect.txt: frame 1"):
+        sequence.init_box
+    np.testing.assert_array_equal(sequence.with_init_box([1, 1, 2, 2]).init_box, [1, 1, 2, 2])
+
+
+# --------------------------------------------------------------- errors
+def test_missing_folder(tmp_path):
+    with pytest.raises(DataError, match="Nowhere: sequence folder not found"):
+        open_sequence(tmp_path / "Nowhere")
+
+
+def test_not_a_folder(tmp_path):
+    (tmp_path / "file.txt").write_text("x")
+    with pytest.raises(DataError, match="file.txt: not a folder"):
+        open_sequence(tmp_path / "file.txt")
+
+
+def test_no_img_folder(tmp_path):
+    (tmp_path / "Seq").mkdir()
+    with pytest.raises(DataError, match="Seq: no 'img' folder"):
+        open_sequence(tmp_path / "Seq")
+
+
+def test_img_folder_without_images(tmp_path):
+    (tmp_path / "Seq" / "img").mkdir(parents=True)
+    (tmp_path / "Seq" / "img" / "readme.txt").write_text("x")
+    with pytest.raises(DataError, match="img: no images"):
+        open_sequence(tmp_path / "Seq")
+
+
+def test_corrupt_first_image_fails_at_open(tmp_path):
+    folder = make_sequence_folder(tmp_path / "Seq")
+    (folder / "img" / "0001.png").write_bytes(b"\x89PNG garbage")
+    with pytest.raises(DataError, match="0001.png: cannot read image"):
+        open_sequence(folder)
+
+
+def test_corrupt_later_image_fails_when_read(tmp_path):
+    folder = make_sequence_folder(tmp_path / "Seq")
+    (folder / "img" / "0002.png").write_bytes(b"")
+    sequence = open_sequence(folder)
+    with pytest.raises(DataError, match="0002.png: cannot read image"):
+        sequence.frame(1)
+    sequence.frame(2)
+
+
+def test_mixed_frame_sizes(tmp_path):
+    images = [np.zeros(FRAME_SHAPE, np.uint8), np.zeros((7, 8), np.uint8)]
+    folder = make_sequence_folder(tmp_path / "Seq", n_frames=2, images=images, groundtruth=gt_lines(2))
+    sequence = open_sequence(folder)
+    with pytest.raises(DataError, match=r"0002.png: image is 7x8 \(HxW\) but frame 1 is 6x8"):
+        sequence.frame(1)
+
+
+def test_list_sequences_errors(tmp_path):
+    with pytest.raises(DataError, match="missing: data root not found"):
+        list_sequences(tmp_path / "missing")
+    (tmp_path / "empty" / "notes").mkdir(parents=True)
+    with pytest.raises(DataError, match="empty: no sequences"):
+        list_sequences(tmp_path / "empty")
+
+
+def test_malformed_groundtruth_names_the_file(tmp_path):
+    folder = make_sequence_folder(tmp_path / "Seq", groundtruth="1,2,3\n")
+    with pytest.raises(DataError, match=r"groundtruth_rect.txt:1: expected 4 numbers"):
+        open_sequence(folder)
+
+
+# ------------------------------------------------------- sparse packs
+def write_sparsepack(folder: Path, n_frames: int, keyframes: dict[int, np.ndarray], size=(8, 6)) -> None:
+    """datainfo.txt + x_gt.mat with the given 1-based keyframe corner arrays."""
+    (folder / "datainfo.txt").write_text(f"{size[0]}\r\n{size[1]}\r\n{n_frames}")
+    cells = np.empty((1, len(keyframes)), dtype=object)
+    for k, corners in enumerate(keyframes.values()):
+        cells[0, k] = corners
+    frame_index = np.array([list(keyframes)], dtype=np.uint16)
+    scipy.io.savemat(str(folder / "pack_gt.mat"), {"frameIndex": frame_index, "gtCornersAll": cells})
+
+
+def test_sparsepack_fallback(tmp_path):
+    folder = make_sequence_folder(tmp_path / "Pack", n_frames=4, groundtruth=None)
+    rotated = np.array([[2.0, 1.5, 4.0, 4.5, 2.0], [1.0, 3.0, 3.5, 1.5, 1.0]])  # not axis-aligned
+    upright = np.array([[1.0, 1.0, 3.0, 3.0, 1.0], [2.0, 5.0, 5.0, 2.0, 2.0]])  # TL, BL, BR, TR, TL
+    write_sparsepack(folder, 4, {1: rotated, 3: upright})
+    assert read_datainfo(folder) == (8, 6, 4)
+
+    boxes = read_sparsepack_groundtruth(folder)
+    np.testing.assert_allclose(boxes[0], [1.5, 1.0, 3.0, 2.5])
+    np.testing.assert_allclose(boxes[2], [1.0, 2.0, 2.0, 3.0])
+    assert np.isnan(boxes[[1, 3]]).all()
+
+    sequence = open_sequence(folder)
+    assert sequence.groundtruth_path.name == "pack_gt.mat"
+    np.testing.assert_array_equal(sequence.groundtruth, boxes, strict=False)
+
+    # A groundtruth_rect.txt, when present, wins over the mat file.
+    (folder / "groundtruth_rect.txt").write_text(gt_lines(4))
+    assert open_sequence(folder).groundtruth[0, 0] == 1
+
+
+def test_sparsepack_errors(tmp_path):
+    folder = make_sequence_folder(tmp_path / "Pack", n_frames=2, groundtruth=None)
+    write_sparsepack(folder, 2, {5: np.zeros((2, 5))})
+    with pytest.raises(DataError, match=r"pack_gt.mat: keyframe 5 outside 1..2"):
+        read_sparsepack_groundtruth(folder)
+    write_sparsepack(folder, 2, {1: np.array([[1.0, 1, 3, 3, 1], [1.0, 4, 4, 1, 1]])}, size=(80, 60))
+    with pytest.raises(DataError, match=r"datainfo.txt: says 80x60"):
+        open_sequence(folder)
+    (folder / "datainfo.txt").write_text("8 six 2")
+    with pytest.raises(DataError, match="datainfo.txt: expected 3 integers"):
+        read_sparsepack_groundtruth(folder)
+
+
+# ------------------------------------------------------------ real data
+@pytest.mark.realdata
+@pytest.mark.parametrize("name", ["Caviar1", "Occlusion1", "Occlusion2"])
+def test_sparsepack_matches_groundtruth_rect(real_data_root, name):
+    folder = real_data_root / name
+    from_mat = read_sparsepack_groundtruth(folder)
+    from_text = read_box_file(folder / "groundtruth_rect.txt")
+    assert from_mat.shape == from_text.shape
+    np.testing.assert_array_equal(np.isnan(from_mat), np.isnan(from_text))
+    # The text file holds the mat boxes printed with 6 significant digits
+    # (Occlusion1 line 2: y = 71.47368421 -> 71.4737); a few last digits differ
+    # by one unit (114.01152 -> 114.011), so the values agree to 1e-3, no better.
+    np.testing.assert_allclose(from_mat, from_text, rtol=0, atol=1e-3)
+
+
+@pytest.mark.realdata
+def test_real_data_root(real_data_root):
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # Football1 has fewer boxes than frames
+        sequences = {s.name: s for s in list_sequences(real_data_root)}
+    for name in ["Car4", "Caviar1", "Couple", "Football1", "Jogging-1", "Jogging-2", "Occlusion1", "Occlusion2"]:
+        assert name in sequences
+    assert "Jogging" not in sequences
+    assert list(sequences) == sorted(sequences)
+
+    car4 = sequences["Car4"]  # CRLF, commas
+    assert car4.groundtruth.shape == (len(car4), 4) and car4.annotated.all()
+    couple = sequences["Couple"]  # tabs
+    assert couple.annotated.all() and np.isfinite(couple.init_box).all()
+    occlusion1 = sequences["Occlusion1"]  # 0,0,0,0 rows between keyframes
+    np.testing.assert_array_equal(occlusion1.groundtruth[1], [120.5, 71.4737, 116, 146])
+    assert not occlusion1.annotated[2]
+    frame = car4.frame(0)
+    assert frame.shape == car4.frame_size and frame.dtype == np.float32
+
+
+@pytest.mark.realdata
+def test_real_football1_pads_missing_boxes(real_data_root):
+    with pytest.warns(UserWarning, match=r"Football1.groundtruth_rect.txt: 74 ground-truth boxes for 81 frames"):
+        football = open_sequence(real_data_root / "Football1")
+    assert len(football) == 81
+    assert football.annotated.sum() == 74 and not football.annotated[74:].any()
+
+
+@pytest.mark.realdata
+def test_real_jogging_by_name(real_data_root):
+    jogging = open_sequence(real_data_root / "Jogging-2")
+    assert jogging.name == "Jogging-2" and jogging.groundtruth_path.name == "groundtruth_rect.2.txt"
+    assert isinstance(jogging, Sequence)
