@@ -30,16 +30,20 @@ Three solver behaviours, shared by the coefficients ``c`` (kernel 1,
   solution of the sum-to-one problem needs it (it is only a rescaling, so
   signs and ratios are the paper's).
 * ``ridge == 0``, ``constrained=False`` ("plain" approximated LLC, eq. allc):
-  ``G`` may be singular (duplicate templates, ``k`` above the rank). A
-  diagonal jitter ``PLAIN_JITTER * (|y|^2 + max_a |t_{u_a}|^2)`` is used as
-  the ridge (see :data:`PLAIN_JITTER`), which gives the limit
-  ``ridge -> 0+``: the minimum-norm minimiser, to a relative error of about
-  ``jitter / (smallest non-zero eigenvalue of G)``. The jitter is scaled by
-  the data (not by ``G``) because it must dominate the rounding noise of the
-  expansion, which is proportional to ``|y|^2 + |t|^2``; then a ``G`` that
-  is zero up to rounding (all templates equal to ``y``) yields the uniform
-  ``1/k`` instead of amplified noise. A ``ridge`` below the jitter is raised
-  to it.
+  ``G`` may be singular (duplicate templates, ``k`` above the rank). The
+  factorisation then uses a diagonal jitter
+  ``PLAIN_JITTER * (|y|^2 + max_a |t_{u_a}|^2)`` (see :data:`PLAIN_JITTER`)
+  and removes its bias with a few steps of iterated Tikhonov refinement
+  (:func:`_solve_sum_to_one`). The result approximates the limit
+  ``ridge -> 0+`` (the exact solution for non-singular ``G``, the
+  minimum-norm minimiser for singular ``G``): the error along an eigenvalue
+  ``e`` of ``G`` is damped by ``(jitter / (e + jitter))^4``, so only
+  directions with ``e`` below ~the jitter (rounding-noise level) keep a
+  Tikhonov-regularised value. The jitter is scaled by the data (not by ``G``) because it
+  must dominate the rounding noise of the expansion, which is proportional
+  to ``|y|^2 + |t|^2``; a ``G`` that is zero up to rounding (all templates
+  equal to ``y``) then yields the uniform ``1/k`` instead of amplified
+  noise. Any ``ridge`` below the jitter is handled the same way.
 * ``constrained=True`` (the paper's non-negative problems, eq. allcn/multillc):
   the exact QP with ``c >= 0`` as well, solved by a primal active-set method
   (:func:`_solve_simplex_qp`) on ``G + ridge I`` (the same jitter applies
@@ -49,8 +53,9 @@ Every small ``k x k`` system is solved by a hand-written Cholesky
 factorisation in per-candidate work buffers. If a pivot falls below half the
 diagonal shift (impossible in exact arithmetic for ``G`` PSD, so a sign that
 rounding noise made ``G`` indefinite) the shift is multiplied by 10 and the
-factorisation retried; the result is therefore finite for any finite input.
-Non-finite inputs give NaN coefficients rather than a silent fallback.
+factorisation retried (without refinement); the result is therefore finite
+for any finite input. Non-finite inputs give NaN coefficients rather than a
+silent fallback.
 """
 from __future__ import annotations
 
@@ -64,11 +69,11 @@ from nrmlc.errors import ParameterError
 
 __all__ = ["PLAIN_JITTER", "encode_dictionaries", "combine_dictionaries", "scatter_codes"]
 
-#: Relative diagonal jitter used when ``ridge`` is 0 (or smaller than the
-#: jitter), in units of ``|y|^2 + max |t|^2`` over the dictionary. With float64
-#: dots the rounding noise of the expanded Gram is ~1e-16 of that scale, so the
-#: jitter dominates it by ~1e6 while perturbing well-conditioned solutions by
-#: only ~1e-10 relative.
+#: Relative diagonal jitter of the factorisation when ``ridge`` is 0 (or smaller
+#: than the jitter), in units of ``|y|^2 + max |t|^2`` over the dictionary. With
+#: float64 dots the rounding noise of the expanded Gram is ~1e-16 of that scale,
+#: so the jitter dominates it by ~1e6; its bias on the solution is then removed
+#: by iterated Tikhonov refinement (``_REFINEMENTS`` steps).
 PLAIN_JITTER = 1e-10
 
 #: Absolute lower bound of the diagonal shift, for all-zero data (G == 0 exactly).
@@ -79,6 +84,9 @@ _SHIFT_FLOOR = 1e-290
 #: from the jitter far beyond any rounding noise of finite data.
 _MAX_RETRIES = 40
 
+#: Iterated-Tikhonov steps that remove the jitter's bias when it is active.
+_REFINEMENTS = 3
+
 #: Tolerance of the active-set optimality test, relative to the largest diagonal
 #: entry of ``G + ridge I`` (the scale of the gradient).
 _KKT_TOLERANCE = 1e-11
@@ -86,7 +94,7 @@ _KKT_TOLERANCE = 1e-11
 
 @njit(**NUMBA_FLAGS)
 def _diagonal_shift(ridge, data_scale):
-    """Diagonal shift ``max(ridge, PLAIN_JITTER * data_scale, _SHIFT_FLOOR)``."""
+    """Factorisation shift ``max(ridge, PLAIN_JITTER * data_scale, _SHIFT_FLOOR)``."""
     shift = ridge
     jitter = PLAIN_JITTER * data_scale
     if jitter > shift:
@@ -97,19 +105,49 @@ def _diagonal_shift(ridge, data_scale):
 
 
 @njit(**NUMBA_FLAGS)
-def _solve_sum_to_one(gram, members, n_members, shift, chol, solution):
-    """Minimise ``c' (G_W + shift I) c`` subject to ``1'c = 1``.
+def _substitute(chol, n, solution, rhs_offset, rhs_scale):
+    """Solve ``L L' x = 1 + rhs_scale * x_old`` in place (``x_old`` = ``solution``).
+
+    Forward substitution consumes ``solution[r]`` (the old iterate) before
+    overwriting it with ``z[r]``, so no second buffer is needed.
+    """
+    for r in range(n):
+        value = rhs_offset + rhs_scale * solution[r]
+        for p in range(r):
+            value -= chol[r, p] * solution[p]
+        solution[r] = value / chol[r, r]
+    for r in range(n - 1, -1, -1):
+        value = solution[r]
+        for p in range(r + 1, n):
+            value -= chol[p, r] * solution[p]
+        solution[r] = value / chol[r, r]
+
+
+@njit(**NUMBA_FLAGS)
+def _solve_sum_to_one(gram, members, n_members, ridge, shift, chol, solution):
+    """Minimise ``c' (G_W + ridge I) c`` subject to ``1'c = 1``.
+
+    Computes ``x = (G_W + ridge I)^{-1} 1`` and returns ``c = x / 1'x``. The
+    matrix is factorised as ``L L' = G_W + shift I`` with ``shift >= ridge``;
+    when ``shift > ridge`` (the jitter is active) ``x`` is refined by
+    ``_REFINEMENTS`` steps of iterated Tikhonov,
+    ``x <- (G_W + shift I)^{-1} (1 + (shift - ridge) x)``, which converge to
+    ``(G_W + ridge I)^{-1} 1`` (to the minimum-norm limit for singular
+    ``G_W`` and ``ridge == 0``), each step shrinking the error component on
+    eigenvalue ``e`` by ``(shift - ridge) / (e + shift)``.
 
     Parameters
     ----------
     gram : ndarray, shape (k_max, k_max)
-        Symmetric matrix ``G``; only rows/columns listed in ``members`` are read.
+        Symmetric PSD matrix ``G``; only rows/columns in ``members`` are read.
     members : ndarray, shape (k_max,), int64
         ``members[:n_members]`` is the index set ``W`` of the subproblem.
     n_members : int
         Size of ``W`` (at least 1).
+    ridge : float
+        The problem's ridge (>= 0).
     shift : float
-        Positive diagonal shift (ridge or jitter).
+        Factorisation shift, ``>= ridge`` and > 0.
     chol : ndarray, shape (k_max, k_max)
         Work buffer for the Cholesky factor ``L`` (lower triangle).
     solution : ndarray, shape (k_max,)
@@ -118,8 +156,10 @@ def _solve_sum_to_one(gram, members, n_members, shift, chol, solution):
     Returns
     -------
     shift_used : float
-        The shift after any retries (equal to ``shift`` unless rounding made
-        ``G_W`` numerically indefinite).
+        The shift of the accepted factorisation: ``shift`` unless rounding
+        made ``G_W + shift I`` numerically indefinite, in which case it was
+        multiplied by 10 until the factorisation succeeded and the result is
+        the (unrefined) solution for that larger shift.
     """
     n = n_members
     for r in range(n):
@@ -130,9 +170,9 @@ def _solve_sum_to_one(gram, members, n_members, shift, chol, solution):
                     solution[s] = np.nan
                 return shift
     current = shift
-    for _attempt in range(_MAX_RETRIES):
+    for attempt in range(_MAX_RETRIES):
         # In exact arithmetic every pivot of G_W + s I is >= s (G_W is PSD);
-        # a pivot below s/2 means rounding made G_W indefinite.
+        # a pivot below s/2 means rounding made G_W indefinite at this scale.
         threshold = 0.5 * current
         factorised = True
         for r in range(n):
@@ -152,17 +192,13 @@ def _solve_sum_to_one(gram, members, n_members, shift, chol, solution):
             if not factorised:
                 break
         if factorised:
-            # Forward substitution L z = 1, then back substitution L' x = z.
-            for r in range(n):
-                value = 1.0
-                for p in range(r):
-                    value -= chol[r, p] * solution[p]
-                solution[r] = value / chol[r, r]
-            for r in range(n - 1, -1, -1):
-                value = solution[r]
-                for p in range(r + 1, n):
-                    value -= chol[p, r] * solution[p]
-                solution[r] = value / chol[r, r]
+            _substitute(chol, n, solution, 1.0, 0.0)
+            # Refining after a retry would amplify the noise directions that
+            # forced the retry (by up to 2 per step), so only refine a clean
+            # first factorisation.
+            if attempt == 0 and current > ridge:
+                for _step in range(_REFINEMENTS):
+                    _substitute(chol, n, solution, 1.0, current - ridge)
             total = 0.0
             for r in range(n):
                 total += solution[r]
@@ -179,8 +215,8 @@ def _solve_sum_to_one(gram, members, n_members, shift, chol, solution):
 
 
 @njit(**NUMBA_FLAGS)
-def _solve_simplex_qp(gram, k, shift, chol, members, is_free, trial, grad, coef):
-    """Minimise ``c' (G + shift I) c`` subject to ``c >= 0`` and ``1'c = 1``.
+def _solve_simplex_qp(gram, k, ridge, shift, chol, members, is_free, trial, grad, coef):
+    """Minimise ``c' (G + ridge I) c`` subject to ``c >= 0`` and ``1'c = 1``.
 
     Primal active-set method on the leading ``k x k`` block of ``gram``:
 
@@ -190,16 +226,18 @@ def _solve_simplex_qp(gram, k, shift, chol, members, is_free, trial, grad, coef)
        (:func:`_solve_sum_to_one`);
     3. if that point has negative entries, move towards it as far as
        feasibility allows (ratio test) and drop the blocking variable(s);
-    4. otherwise accept it and compute the gradient ``g = 2 F c``. On ``W``,
-       ``g_a`` equals the multiplier ``mu = c'g`` of the sum constraint; a bound
-       variable ``b`` is optimal iff ``g_b - mu >= -tol``. Release the one with
-       the most negative ``g_b - mu`` (lowest index on ties) or stop.
+    4. otherwise accept it and compute the gradient ``g = 2 F c`` with
+       ``F = G + ridge I``. On ``W``, ``g_a`` equals the multiplier
+       ``mu = c'g`` of the sum constraint; a bound variable ``b`` is optimal
+       iff ``g_b - mu >= -tol`` (``tol = 1e-11`` of the largest diagonal
+       entry). Release the one with the most negative ``g_b - mu`` (lowest
+       index on ties) or stop.
 
     The objective strictly decreases between accepted points, so the method
     terminates in exact arithmetic; against cycling on degenerate (rounding
     driven) steps the loop is capped at ``4 k + 10`` subproblem solves, after
-    which the current feasible point is returned. ``k <= 16`` solves in a
-    handful of iterations in practice.
+    which the current feasible point is returned. Problems with ``k <= 16``
+    take a handful of solves in practice.
 
     Parameters
     ----------
@@ -207,8 +245,10 @@ def _solve_simplex_qp(gram, k, shift, chol, members, is_free, trial, grad, coef)
         Symmetric PSD matrix ``G``.
     k : int
         Number of variables (leading block used).
+    ridge : float
+        The problem's ridge (>= 0).
     shift : float
-        Positive diagonal shift (ridge or jitter), ``F = G + shift I``.
+        Factorisation shift for the subproblems (see :func:`_solve_sum_to_one`).
     chol : ndarray, shape (k_max, k_max)
         Cholesky work buffer.
     members, is_free : ndarray, shape (k_max,), int64
@@ -244,7 +284,7 @@ def _solve_simplex_qp(gram, k, shift, chol, members, is_free, trial, grad, coef)
             if is_free[a] == 1:
                 members[n_free] = a
                 n_free += 1
-        _solve_sum_to_one(gram, members, n_free, shift, chol, trial)
+        _solve_sum_to_one(gram, members, n_free, ridge, shift, chol, trial)
         n_solves += 1
         if not np.isfinite(trial[0]):
             for a in range(k):
@@ -279,7 +319,7 @@ def _solve_simplex_qp(gram, k, shift, chol, members, is_free, trial, grad, coef)
             coef[members[r]] = trial[r]
         multiplier = 0.0
         for a in range(k):
-            value = shift * coef[a]
+            value = ridge * coef[a]
             for b in range(k):
                 value += gram[a, b] * coef[b]
             grad[a] = 2.0 * value
@@ -308,14 +348,14 @@ def _solve_simplex_qp(gram, k, shift, chol, members, is_free, trial, grad, coef)
 
 
 @njit(**NUMBA_FLAGS)
-def _solve(gram, k, shift, constrained, chol, members, is_free, trial, grad, out):
+def _solve(gram, k, ridge, shift, constrained, chol, members, is_free, trial, grad, out):
     """Dispatch to the closed form or the QP; writes the solution to ``out[:k]``."""
     if constrained:
-        _solve_simplex_qp(gram, k, shift, chol, members, is_free, trial, grad, out)
+        _solve_simplex_qp(gram, k, ridge, shift, chol, members, is_free, trial, grad, out)
     else:
         for a in range(k):
             members[a] = a
-        _solve_sum_to_one(gram, members, k, shift, chol, out)
+        _solve_sum_to_one(gram, members, k, ridge, shift, chol, out)
 
 
 @njit(**PARALLEL_FLAGS)
@@ -349,7 +389,7 @@ def _encode_dictionaries(
                     largest = template_gram[ua, ua]
             shift = _diagonal_shift(ridge, sq_norm + largest)
             out = real_work[i, 2]
-            _solve(gram, k, shift, constrained, chol_work[i], int_work[i, 0], int_work[i, 1],
+            _solve(gram, k, ridge, shift, constrained, chol_work[i], int_work[i, 0], int_work[i, 1],
                    real_work[i, 0], real_work[i, 1], out)
             for a in range(k):
                 coefficients[i, j, a] = out[a]
@@ -414,7 +454,7 @@ def _combine_dictionaries(
         uniform = 1.0 / n_dictionaries
         if n_iterations >= 1:
             shift = _diagonal_shift(ridge, sq_norm + largest)
-            _solve(gram, n_dictionaries, shift, constrained, chol_work[i], int_work[i, 0],
+            _solve(gram, n_dictionaries, ridge, shift, constrained, chol_work[i], int_work[i, 0],
                    int_work[i, 1], real_work[i, 0], real_work[i, 1], solved)
             for j in range(n_dictionaries):
                 weights[i, j] = solved[j]

@@ -1,0 +1,157 @@
+"""Tests of nrmlc.kernels.distance against the brute-force references."""
+from __future__ import annotations
+
+import numba
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from nrmlc.errors import ParameterError
+from nrmlc.kernels.distance import candidate_template_dots, nearest_templates, template_gram
+from reference import make_problem, reference_dots, reference_nearest, reference_sq_distances
+
+
+def _tables(candidates, templates):
+    dots = candidate_template_dots(candidates, templates)
+    gram = template_gram(templates)
+    candidate_sq_norms = (candidates.astype(np.float64) ** 2).sum(axis=1)
+    return dots, gram, candidate_sq_norms, np.diag(gram).copy()
+
+
+def test_dots_float32_match_reference():
+    candidates, templates = make_problem(0)
+    dots = candidate_template_dots(candidates, templates)
+    assert dots.dtype == np.float64 and dots.shape == (40, 60) and dots.flags.c_contiguous
+    # sgemm accumulates in float32: absolute error ~1e-7 per unit-norm dot.
+    np.testing.assert_allclose(dots, reference_dots(candidates, templates), rtol=0, atol=2e-6)
+
+
+def test_dots_float64_match_reference():
+    candidates, templates = make_problem(1)
+    candidates, templates = candidates.astype(np.float64), templates.astype(np.float64)
+    dots = candidate_template_dots(candidates, templates)
+    np.testing.assert_allclose(dots, reference_dots(candidates, templates), rtol=0, atol=1e-14)
+
+
+def test_template_gram_symmetric_and_exact():
+    _, templates = make_problem(2)
+    gram = template_gram(templates)
+    assert gram.dtype == np.float64 and gram.shape == (60, 60)
+    np.testing.assert_array_equal(gram, gram.T)
+    np.testing.assert_allclose(gram, reference_dots(templates, templates), rtol=0, atol=1e-14)
+
+
+@pytest.mark.parametrize("k", [1, 5, 10, 60])
+def test_nearest_matches_brute_force(k):
+    candidates, templates = make_problem(3)
+    # float64 products so that the expansion is accurate to ~1e-15.
+    dots, _, cand_norms, tmpl_norms = _tables(candidates.astype(np.float64),
+                                               templates.astype(np.float64))
+    indices, sq_distances = nearest_templates(dots, cand_norms, tmpl_norms, k)
+    assert indices.shape == (40, k) and indices.dtype == np.int64
+    exact = reference_sq_distances(candidates, templates)
+    _, expected = reference_nearest(exact, k)
+    np.testing.assert_allclose(sq_distances, expected, rtol=0, atol=1e-13)
+    # Robust to near-ties: the chosen templates really are at those distances.
+    np.testing.assert_allclose(np.take_along_axis(exact, indices, axis=1), expected,
+                               rtol=0, atol=1e-13)
+    assert np.all(np.diff(sq_distances, axis=1) >= 0)
+    assert all(len(set(row)) == k for row in indices.tolist())
+
+
+def test_nearest_with_float32_dots():
+    candidates, templates = make_problem(4)
+    dots, _, cand_norms, tmpl_norms = _tables(candidates, templates)
+    indices, sq_distances = nearest_templates(dots, cand_norms, tmpl_norms, 10)
+    exact = reference_sq_distances(candidates, templates)
+    _, expected = reference_nearest(exact, 10)
+    np.testing.assert_allclose(sq_distances, expected, rtol=0, atol=5e-6)
+    np.testing.assert_allclose(np.take_along_axis(exact, indices, axis=1), expected,
+                               rtol=0, atol=1e-5)
+
+
+@settings(max_examples=50, deadline=None)
+@given(
+    n_candidates=st.integers(1, 6),
+    n_templates=st.integers(1, 25),
+    k_fraction=st.floats(0.0, 1.0),
+    seed=st.integers(0, 2**32 - 1),
+)
+def test_nearest_exact_ties_match_stable_argsort(n_candidates, n_templates, k_fraction, seed):
+    # Small integers: every distance is computed exactly, with many ties, so the
+    # result must equal the stable argsort bit for bit.
+    rng = np.random.default_rng(seed)
+    k = 1 + int(k_fraction * (n_templates - 1))
+    dots = rng.integers(-3, 4, (n_candidates, n_templates)).astype(np.float64)
+    cand_norms = rng.integers(0, 4, n_candidates).astype(np.float64)
+    tmpl_norms = rng.integers(0, 4, n_templates).astype(np.float64)
+    indices, sq_distances = nearest_templates(dots, cand_norms, tmpl_norms, k)
+    distances = np.maximum(cand_norms[:, None] + tmpl_norms[None, :] - 2.0 * dots, 0.0)
+    expected_indices, expected_distances = reference_nearest(distances, k)
+    np.testing.assert_array_equal(indices, expected_indices)
+    np.testing.assert_array_equal(sq_distances, expected_distances)
+
+
+def test_nearest_duplicate_templates_prefer_lower_index():
+    candidates, templates = make_problem(5)
+    dots, _, cand_norms, tmpl_norms = _tables(candidates, templates)
+    # Template t+60 is a copy of template t (tables duplicated, so the ties are exact).
+    dots = np.ascontiguousarray(np.hstack([dots, dots]))
+    tmpl_norms = np.concatenate([tmpl_norms, tmpl_norms])
+    indices, _ = nearest_templates(dots, cand_norms, tmpl_norms, 2)
+    # Each template's copy has exactly the same distance; the lower index comes first.
+    assert np.all(indices[:, 1] == indices[:, 0] + 60)
+
+
+def test_nearest_nan_ranks_last():
+    dots = np.array([[0.5, np.nan, 0.9, 0.1]])
+    indices, sq_distances = nearest_templates(dots, np.ones(1), np.ones(4), 4)
+    np.testing.assert_array_equal(indices, [[2, 0, 3, 1]])
+    assert np.isinf(sq_distances[0, 3])
+
+
+def test_determinism_across_thread_counts():
+    rng = np.random.default_rng(6)
+    candidates = rng.random((300, 32)).astype(np.float32)
+    templates = rng.random((120, 32)).astype(np.float32)
+    dots, _, cand_norms, tmpl_norms = _tables(candidates, templates)
+    previous = numba.get_num_threads()
+    try:
+        numba.set_num_threads(1)
+        one = nearest_templates(dots, cand_norms, tmpl_norms, 10)
+        numba.set_num_threads(min(2, numba.config.NUMBA_NUM_THREADS))
+        two = nearest_templates(dots, cand_norms, tmpl_norms, 10)
+    finally:
+        numba.set_num_threads(previous)
+    assert one[0].tobytes() == two[0].tobytes()
+    assert one[1].tobytes() == two[1].tobytes()
+
+
+def test_parameter_errors():
+    candidates, templates = make_problem(7)
+    with pytest.raises(ParameterError, match="candidates"):
+        candidate_template_dots(candidates.astype(np.int32), templates)
+    with pytest.raises(ParameterError, match="templates"):
+        candidate_template_dots(candidates, templates.astype(np.float64))
+    with pytest.raises(ParameterError, match="C-contiguous"):
+        candidate_template_dots(np.asfortranarray(candidates), templates)
+    with pytest.raises(ParameterError, match="dim"):
+        candidate_template_dots(candidates, templates[:, :10].copy())
+    with pytest.raises(ParameterError, match="templates"):
+        template_gram(templates[0])
+    dots, _, cand_norms, tmpl_norms = _tables(candidates, templates)
+    with pytest.raises(ParameterError, match="k must be"):
+        nearest_templates(dots, cand_norms, tmpl_norms, 0)
+    with pytest.raises(ParameterError, match="k must be"):
+        nearest_templates(dots, cand_norms, tmpl_norms, 61)
+    with pytest.raises(ParameterError, match="k must be an integer"):
+        nearest_templates(dots, cand_norms, tmpl_norms, 2.0)
+    with pytest.raises(ParameterError, match="dots"):
+        nearest_templates(dots.astype(np.float32), cand_norms, tmpl_norms, 3)
+    with pytest.raises(ParameterError, match="candidate_sq_norms"):
+        nearest_templates(dots, cand_norms[:-1].copy(), tmpl_norms, 3)
+    with pytest.raises(ParameterError, match="template_sq_norms"):
+        nearest_templates(dots, cand_norms, tmpl_norms[:-1].copy(), 3)
+    with pytest.raises(ParameterError, match="C-contiguous"):
+        nearest_templates(dots[:, ::2], cand_norms, tmpl_norms[::2].copy(), 3)
