@@ -13,8 +13,13 @@ import warnings
 
 
 def _cmd_evaluate(args: argparse.Namespace) -> int:
+    from nrmlc.data import read_box_file
     from nrmlc.metrics import evaluate_files
 
+    n_predicted, n_annotated = len(read_box_file(args.results)), len(read_box_file(args.groundtruth))
+    if n_annotated < n_predicted:
+        warnings.warn(f"{args.groundtruth}: {n_annotated} ground-truth boxes for {n_predicted} result boxes; "
+                      f"only the first {n_annotated} frames are evaluated")
     result = evaluate_files(args.results, args.groundtruth, skip_first=not args.include_first)
     summary = result.as_dict()
     if args.json:
@@ -79,21 +84,35 @@ def build_parser() -> argparse.ArgumentParser:
         pass
     else:
         add_track_command(commands)
+    for command in commands.choices.values():
+        # Also accepted after the command name; SUPPRESS keeps a top-level --debug from being reset.
+        command.add_argument("--debug", action="store_true", default=argparse.SUPPRESS,
+                             help="show tracebacks instead of one-line errors")
     return parser
 
 
 def main(argv: list[str] | None = None) -> int:
-    from nrmlc.errors import NrmlcError
-
     parser = build_parser()
     args = parser.parse_args(argv)
+    # Warnings as one "warning: ..." line each (no source line); restored on return
+    # so that calling main() from Python does not change the caller's formatting.
+    format_warning = warnings.formatwarning
     warnings.formatwarning = lambda message, category, *rest: f"warning: {message}\n"
+    try:
+        return _run(args)
+    finally:
+        warnings.formatwarning = format_warning
+
+
+def _run(args: argparse.Namespace) -> int:
+    from nrmlc.errors import NrmlcError
+
     try:
         return int(args.run(args) or 0)
     except NrmlcError as error:
         if args.debug:
             raise
-        print(f"error: {error}", file=sys.stderr)
+        print(f"error: {_one_line(error)}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
         print("interrupted", file=sys.stderr)
@@ -101,8 +120,12 @@ def main(argv: list[str] | None = None) -> int:
     except OSError as error:
         if args.debug:
             raise
-        print(f"error: {error}", file=sys.stderr)
+        print(f"error: {_one_line(error)}", file=sys.stderr)
         return 2
+
+
+def _one_line(error: BaseException) -> str:
+    return " ".join(part.strip() for part in str(error).splitlines() if part.strip()) or type(error).__name__
 
 
 if __name__ == "__main__":

@@ -33,6 +33,13 @@ def _atomic(path: str | os.PathLike, write: Callable[[Any], None], mode: str) ->
     return path
 
 
+def write_bytes(path: str | os.PathLike, data: bytes | bytearray | memoryview | np.ndarray) -> Path:
+    """Write raw bytes to ``path`` atomically (a numpy array is written as its buffer)."""
+    if isinstance(data, np.ndarray):
+        data = np.ascontiguousarray(data).tobytes()
+    return _atomic(path, lambda f: f.write(data), "wb")
+
+
 def write_text(path: str | os.PathLike, text: str) -> Path:
     """Write ``text`` to ``path`` atomically."""
     return _atomic(path, lambda f: f.write(text), "w")

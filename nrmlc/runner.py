@@ -32,8 +32,10 @@ from nrmlc import io
 from nrmlc.tracker.params import TrackerParams
 from nrmlc.tracker.run import TrackResult, track_sequence
 
-#: Sources whose change can change a run's boxes.
-_RESULT_SOURCES = ("geometry.py", "config.py", "kernels", "tracker")
+#: Sources whose change can change a run's boxes. ``data`` is included because it
+#: decodes and converts the frames (and renders the synthetic ones) and reads the
+#: initial box: a change there changes what the tracker sees.
+_RESULT_SOURCES = ("geometry.py", "config.py", "data", "kernels", "tracker")
 
 DEFAULT_CACHE = Path(".cache") / "runs"
 
@@ -54,11 +56,17 @@ def code_version() -> str:
 
 
 def sequence_identity(sequence) -> str:
-    """A string naming the sequence's content: its folder or its synthetic spec."""
+    """A string naming the sequence's content: its folder or its synthetic spec,
+    plus the initial box when it was overridden (``Sequence.with_init_box``)."""
     spec = getattr(sequence, "spec", None)
     if spec is not None:
-        return f"synthetic:{spec!r}"
-    return f"folder:{os.path.abspath(str(sequence.path))}:{sequence.name}:{len(sequence)}"
+        identity = f"synthetic:{spec!r}"
+    else:
+        identity = f"folder:{os.path.abspath(str(sequence.path))}:{sequence.name}:{len(sequence)}"
+    override = getattr(sequence, "_init_box_override", None)
+    if override is not None:  # only then, so that the keys of ordinary runs stay as they were
+        identity += ":init_box=" + ",".join(repr(float(v)) for v in override)
+    return identity
 
 
 @dataclass(frozen=True)
@@ -181,8 +189,20 @@ class RunCache:
                 executor = futures.ProcessPoolExecutor(max_workers=jobs, initializer=_worker_init)
             try:
                 pending = {executor.submit(_execute, spec, None): spec for spec in missing}
+                failure: BaseException | None = None
                 for done in futures.as_completed(pending):
-                    finished(pending[done], done.result())
+                    if done.cancelled():
+                        continue
+                    error = done.exception()
+                    if error is None:
+                        # Stored even after another run failed: finished work is never thrown away.
+                        finished(pending[done], done.result())
+                    elif failure is None:
+                        failure = error
+                        for future in pending:  # runs not started yet; those running still finish
+                            future.cancel()
+                if failure is not None:
+                    raise failure
             finally:
                 if own:
                     executor.shutdown(wait=True, cancel_futures=True)

@@ -170,7 +170,9 @@ def reference_simplex_qp(matrix: np.ndarray) -> np.ndarray:
     polished = np.zeros(k)
     polished[support] = np.linalg.lstsq(system, rhs, rcond=None)[0][:n]
     if polished.min() >= 0.0 and abs(polished.sum() - 1.0) < 1e-12:
-        if polished @ matrix @ polished <= c @ matrix @ c + 1e-15:
+        # Equal up to rounding of the objective (a wrong support costs far more).
+        objective = c @ matrix @ c
+        if polished @ matrix @ polished <= objective + 1e-12 * (1.0 + abs(objective)):
             return polished
     return c
 

@@ -186,12 +186,21 @@ def test_qp_kkt_and_scipy(matrix, ridge):
 
 
 def test_qp_known_solution():
-    # Three points on a line through y = 0: t0 = -1, t1 = 2, t2 = 5 (1-D).
-    # The optimum mixes t0 and t1 (2/3, 1/3) and leaves t2 at zero.
+    # y = 0 and templates (-1, 1), (1, 1), (0, 3): the closest point of their
+    # triangle to y is (0, 1) = (t0 + t1) / 2, and t2 stays exactly at zero.
+    points = np.array([[-1.0, 1.0], [1.0, 1.0], [0.0, 3.0]])
+    c = _qp_via_kernel(points @ points.T, 0.0)
+    np.testing.assert_allclose(c, [0.5, 0.5, 0.0], rtol=0, atol=1e-12)
+    assert c[2] == 0.0
+
+
+def test_qp_tied_optima_pick_minimum_norm():
+    # y = 0 on the line through t0 = -1, t1 = 2, t2 = 5: every c on the segment
+    # from (2/3, 1/3, 0) to (5/6, 0, 1/6) is optimal; the ridge -> 0+ limit
+    # (minimum norm) is the first end point.
     points = np.array([[-1.0], [2.0], [5.0]])
     c = _qp_via_kernel(points @ points.T, 0.0)
     np.testing.assert_allclose(c, [2 / 3, 1 / 3, 0.0], rtol=0, atol=1e-8)
-    assert c[2] == 0.0
 
 
 @pytest.mark.parametrize("constrained", [False, True])

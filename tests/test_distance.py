@@ -8,7 +8,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from nrmlc.errors import ParameterError
-from nrmlc.kernels.distance import candidate_template_dots, nearest_templates, template_gram
+from nrmlc.kernels.distance import candidate_template_dots, nearest_templates, squared_norms, template_gram
 from reference import make_problem, reference_dots, reference_nearest, reference_sq_distances
 
 
@@ -32,6 +32,25 @@ def test_dots_float64_match_reference():
     candidates, templates = candidates.astype(np.float64), templates.astype(np.float64)
     dots = candidate_template_dots(candidates, templates)
     np.testing.assert_allclose(dots, reference_dots(candidates, templates), rtol=0, atol=1e-14)
+
+
+@pytest.mark.parametrize("dtype", [np.float32, np.float64])
+def test_squared_norms_match_reference(dtype):
+    candidates, _ = make_problem(3, n_candidates=50, dim=1024)
+    vectors = (candidates * 3.0).astype(dtype)
+    sq_norms = squared_norms(vectors)
+    assert sq_norms.dtype == np.float64 and sq_norms.shape == (50,)
+    expected = np.einsum("id,id->i", vectors.astype(np.float64), vectors.astype(np.float64))
+    np.testing.assert_allclose(sq_norms, expected, rtol=1e-14, atol=0)
+    previous = numba.get_num_threads()
+    try:
+        numba.set_num_threads(1)
+        one = squared_norms(vectors)
+    finally:
+        numba.set_num_threads(previous)
+    assert one.tobytes() == sq_norms.tobytes()
+    with pytest.raises(ParameterError, match="vectors"):
+        squared_norms(vectors.astype(np.int32))
 
 
 def test_template_gram_symmetric_and_exact():

@@ -5,7 +5,9 @@ Conventions (OTB):
   (any mix), CRLF or LF line endings, optional trailing newline;
 - boxes are 1-based: pixel (1, 1) is the top-left pixel of the image;
 - a row of ``0,0,0,0`` or any NaN means "frame not annotated": it is returned
-  as a row of NaN so that metrics skip it.
+  as a row of NaN so that metrics skip it;
+- any other row must have ``w > 0`` and ``h > 0``: a zero or negative size
+  (e.g. ``12,30,0,40``) is an error naming ``file:line``.
 """
 from __future__ import annotations
 
@@ -47,7 +49,9 @@ def read_box_file(path: str | os.PathLike) -> np.ndarray:
     Raises
     ------
     DataError
-        On a missing file, a wrong field count, text, or a negative size.
+        On a missing file, a wrong field count, text, an infinite value, or a
+        zero or negative size on a row other than ``0,0,0,0`` (the message
+        names ``file:line``).
     """
     path = os.fspath(path)
     if not os.path.isfile(path):
@@ -69,7 +73,13 @@ def read_box_file(path: str | os.PathLike) -> np.ndarray:
             continue
         if any(math.isinf(v) for v in row):
             raise DataError(f"{where}: infinite value in {line.strip()!r}")
-        if row[2] < 0 or row[3] < 0:
-            raise DataError(f"{where}: negative box size in {line.strip()!r}")
+        if row[2] <= 0 or row[3] <= 0:
+            # Only the full 0,0,0,0 row means "unannotated" (OTB); a box with a
+            # position but no area is a broken annotation, not a missing one.
+            kind = "negative" if min(row[2], row[3]) < 0 else "zero"
+            raise DataError(
+                f"{where}: {kind} box size in {line.strip()!r} (w and h must be > 0; "
+                f"write 0,0,0,0 for an unannotated frame)"
+            )
         rows.append(row)
     return np.asarray(rows, dtype=np.float64)

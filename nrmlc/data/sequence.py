@@ -168,7 +168,16 @@ class Sequence:
         """Read frame ``index`` as stored (subclasses may render it instead)."""
         assert self.image_paths is not None
         file = self.image_paths[index]
-        image = cv2.imread(str(file), cv2.IMREAD_UNCHANGED)
+        try:
+            data = file.read_bytes()
+        except OSError as exc:
+            raise DataError(f"{file}: cannot read image ({exc.strerror or exc})") from None
+        if not data:
+            raise DataError(f"{file}: cannot read image (empty file)")
+        if file.suffix.lower() in (".jpg", ".jpeg") and not _jpeg_is_complete(data):
+            # libjpeg decodes a truncated file without error (grey bottom rows): refuse it.
+            raise DataError(f"{file}: cannot read image (truncated JPEG: no end-of-image marker)")
+        image = cv2.imdecode(np.frombuffer(data, dtype=np.uint8), cv2.IMREAD_UNCHANGED)
         if image is None:
             raise DataError(f"{file}: cannot read image (missing, corrupt or unsupported format)")
         return image
@@ -266,6 +275,16 @@ class Sequence:
             )
             boxes = boxes[:n_frames]
         return boxes.copy()
+
+
+def _jpeg_is_complete(data: bytes) -> bool:
+    """True when the JPEG's last scan (SOS marker FFDA) is followed by an end-of-image marker (FFD9).
+
+    Inside entropy-coded data every 0xFF byte is stuffed (FF00), so FFD9 after the
+    last FFDA can only be the real end marker; an embedded EXIF thumbnail's EOI
+    comes before the main image's scans and does not count.
+    """
+    return data.rfind(b"\xff\xd9") > data.rfind(b"\xff\xda") >= 0
 
 
 def _check_init_box(box: SequenceType[float], where: str) -> np.ndarray:

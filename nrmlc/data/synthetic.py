@@ -41,7 +41,7 @@ import numpy as np
 from nrmlc.config import PATCH_SIZE
 from nrmlc.data.sequence import IMAGE_EXTENSIONS, IMAGE_FOLDER, GROUNDTRUTH_NAME, Sequence
 from nrmlc.errors import DataError, ParameterError
-from nrmlc.io import _atomic, write_boxes
+from nrmlc.io import write_bytes, write_boxes
 
 #: Side of the template grid the state's scale refers to (scale = w / 32).
 TEMPLATE_SIDE = PATCH_SIZE
@@ -463,8 +463,7 @@ def write_otb_sequence(sequence: Sequence, folder: str | os.PathLike) -> Path:
         ok, encoded = cv2.imencode(".png", sequence.raw_frame(index))
         if not ok:
             raise DataError(f"{image_folder / name}: PNG encoding failed")
-        # nrmlc.io has no bytes writer; its _atomic helper gives the same temp-file-and-rename guarantee.
-        _atomic(image_folder / name, lambda handle, data=encoded: handle.write(data.tobytes()), "wb")
+        write_bytes(image_folder / name, encoded)
     write_boxes(folder / GROUNDTRUTH_NAME, np.nan_to_num(sequence.groundtruth, nan=0.0))
     return folder
 

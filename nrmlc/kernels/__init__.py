@@ -1,7 +1,7 @@
 """Compiled per-particle kernels of the NRMLC tracker.
 
-* :mod:`nrmlc.kernels.distance` -- candidate-template inner products, template
-  Gram, k-nearest templates.
+* :mod:`nrmlc.kernels.distance` -- candidate-template inner products, squared
+  norms, template Gram, k-nearest templates.
 * :mod:`nrmlc.kernels.coding` -- approximated-LLC coefficients per local
   dictionary, dictionary weights (Algorithm 1) and confidence errors.
 """
@@ -11,10 +11,11 @@ from nrmlc.kernels.coding import (
     encode_dictionaries,
     scatter_codes,
 )
-from nrmlc.kernels.distance import candidate_template_dots, nearest_templates, template_gram
+from nrmlc.kernels.distance import candidate_template_dots, nearest_templates, squared_norms, template_gram
 
 __all__ = [
     "candidate_template_dots",
+    "squared_norms",
     "template_gram",
     "nearest_templates",
     "PLAIN_JITTER",

@@ -1,0 +1,366 @@
+"""Peer trackers: OpenCV trackers run live, and the shipped per-frame peer results.
+
+Two sources of peer numbers, both scored with :mod:`nrmlc.metrics` against
+*our* ground truth, exactly like NRMLC:
+
+1. **Live OpenCV trackers** (:func:`live_trackers`): ``cv2.TrackerMIL`` always
+   (OpenCV's re-implementation of Babenko's MIL), and ``TrackerKCF`` /
+   ``TrackerCSRT`` when the installed OpenCV has them (opencv-contrib). They
+   are deterministic, so one run per sequence; each run is cached like the
+   NRMLC runs (``<run cache>/peers/<key>.npz``, written atomically) with a key
+   that hashes the tracker, the OpenCV version, the sequence and the frame
+   count, so a rerun recomputes nothing and an OpenCV upgrade recomputes all.
+   Their fps is the time spent in ``init`` and ``update`` (decoding excluded),
+   as for NRMLC.
+2. **Shipped results** (:func:`shipped_results`): ``<peer root>/<Tracker>/<Seq>.txt``
+   (ASLA, IVT, KCF on the OTB-100 versions of the paper's sequences) and
+   ``<peer root>/<Tracker>/sparsepack/<Seq>.txt`` (L1, MIL, IVT on the
+   sparse-tracker versions). A file is used for one of our sequences only if
+   it has one line per frame *and* its first box is the sequence's initial
+   box (IoU >= 0.5): OTB-100 FaceOcc1 (892 lines) does not fit our pack
+   Occlusion1 (898 frames), and the pack Car4 has 659 lines like our OTB Car4
+   but is at twice the resolution. Every skipped file is reported with the
+   reason.
+"""
+from __future__ import annotations
+
+import concurrent.futures as futures
+import hashlib
+import json
+import os
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from experiments.common import PAPER_NAME_OF, paper_name
+from nrmlc import io
+from nrmlc.runner import sequence_identity
+
+#: Bump when the live runner's behaviour changes (it is part of every key).
+LIVE_RUNNER_VERSION = 1
+
+#: OpenCV trackers tried, in column order (only the available ones are run).
+LIVE_CANDIDATES = ("MIL", "KCF", "CSRT")
+
+#: Shipped result folders, and the subfolders holding other versions of sequences.
+SHIPPED_TRACKERS = ("L1", "MIL", "IVT", "ASLA", "KCF")
+SHIPPED_SUBFOLDERS = ("", "sparsepack")
+
+#: A shipped file belongs to a sequence only if its first box overlaps ours this much.
+FIRST_BOX_MIN_IOU = 0.5
+
+
+def opencv_version() -> str:
+    import cv2
+
+    return cv2.__version__
+
+
+def _factory(name: str):
+    """The OpenCV constructor of tracker ``name`` (``cv2.TrackerMIL_create`` or ``cv2.TrackerMIL.create``), or None."""
+    import cv2
+
+    create = getattr(cv2, f"Tracker{name}_create", None)
+    if create is None:
+        create = getattr(getattr(cv2, f"Tracker{name}", None), "create", None)
+    return create
+
+
+def live_trackers() -> list[str]:
+    """The OpenCV trackers available here (MIL always; KCF/CSRT need opencv-contrib)."""
+    return [name for name in LIVE_CANDIDATES if _factory(name) is not None]
+
+
+def live_label(name: str) -> str:
+    """Column name of a live OpenCV tracker."""
+    return f"{name} (OpenCV)"
+
+
+@dataclass(frozen=True)
+class LiveSpec:
+    """One live OpenCV run: ``tracker`` on the first ``n_frames`` frames of ``sequence``."""
+
+    sequence: object
+    tracker: str = "MIL"
+    n_frames: int | None = None
+
+    def frames(self) -> int:
+        n = len(self.sequence)
+        return n if self.n_frames is None else max(1, min(n, int(self.n_frames)))
+
+    def description(self) -> dict:
+        return {"tracker": self.tracker, "opencv": opencv_version(), "runner": LIVE_RUNNER_VERSION,
+                "sequence": sequence_identity(self.sequence), "sequence_name": self.sequence.name,
+                "n_frames": self.n_frames}
+
+    def key(self) -> str:
+        text = json.dumps(self.description(), sort_keys=True, default=str)
+        return hashlib.sha256(text.encode()).hexdigest()[:24]
+
+
+@dataclass
+class PeerResult:
+    """Boxes of a peer on one sequence.
+
+    Attributes
+    ----------
+    boxes : (n, 4) float64
+        1-based OTB boxes from frame 0 (NaN where the tracker reported a failure).
+    seconds_tracking : float
+        Time in ``init`` + ``update`` (NaN for shipped results).
+    source : str
+        Where the boxes come from (``live OpenCV 4.x`` or the file's path).
+    """
+
+    boxes: np.ndarray
+    seconds_tracking: float = float("nan")
+    source: str = ""
+
+    @property
+    def fps_tracking(self) -> float:
+        n = len(self.boxes) - 1
+        return n / self.seconds_tracking if self.seconds_tracking > 0 else float("nan")
+
+
+def _to_cv_rect(box) -> tuple[int, int, int, int]:
+    """1-based float OTB box -> 0-based integer OpenCV rect."""
+    x, y, w, h = (float(v) for v in box)
+    return (int(round(x - 1)), int(round(y - 1)), max(1, int(round(w))), max(1, int(round(h))))
+
+
+def run_live(spec: LiveSpec) -> dict:
+    """Run one OpenCV tracker over a sequence (in a worker process or in-process).
+
+    Returns
+    -------
+    dict of arrays: ``boxes`` (n, 4) 1-based, ``seconds_tracking`` scalar.
+    """
+    create = _factory(spec.tracker)
+    if create is None:
+        raise RuntimeError(f"OpenCV {opencv_version()} has no Tracker{spec.tracker}")
+    sequence = spec.sequence
+    n = spec.frames()
+    tracker = create()
+    boxes = np.full((n, 4), np.nan)
+    init = sequence.init_box
+    boxes[0] = init
+    seconds = 0.0
+    for index in range(n):
+        frame = sequence.color_frame(index)
+        tick = time.perf_counter()
+        if index == 0:
+            tracker.init(frame, _to_cv_rect(init))
+            seconds += time.perf_counter() - tick
+            continue
+        ok, rect = tracker.update(frame)
+        seconds += time.perf_counter() - tick
+        if ok:
+            x, y, w, h = (float(v) for v in rect)
+            boxes[index] = (x + 1.0, y + 1.0, w, h)  # back to 1-based
+    return {"boxes": boxes, "seconds_tracking": np.float64(seconds)}
+
+
+def _worker_init() -> None:
+    from nrmlc.config import set_threads
+
+    set_threads(1)
+
+
+class PeerCache:
+    """Live peer results on disk: ``<folder>/<key>.npz`` plus a ``.json`` description."""
+
+    def __init__(self, folder) -> None:
+        self.folder = Path(folder)
+
+    def path(self, spec: LiveSpec) -> Path:
+        return self.folder / f"{spec.key()}.npz"
+
+    def has(self, spec: LiveSpec) -> bool:
+        return self.path(spec).is_file()
+
+    def load(self, spec: LiveSpec) -> PeerResult:
+        with np.load(self.path(spec)) as arrays:
+            return PeerResult(np.asarray(arrays["boxes"]), float(arrays["seconds_tracking"]),
+                              f"live, OpenCV {opencv_version()}")
+
+    def store(self, spec: LiveSpec, arrays: dict) -> None:
+        # Result first, description second: a present .npz is always complete.
+        io.write_npz(self.path(spec), **arrays)
+        io.write_json(self.path(spec).with_suffix(".json"), spec.description())
+
+    def run(self, specs: list[LiveSpec], executor=None, jobs: int | None = None, progress: bool = True):
+        """Make sure every spec is cached (computing the missing ones), then load them in order."""
+        unique = {}
+        for spec in specs:
+            unique.setdefault(spec.key(), spec)
+        missing = [s for s in unique.values() if not self.has(s)]
+        if missing:
+            self._compute(missing, executor, jobs, progress)
+        return [self.load(s) for s in specs]
+
+    def _compute(self, missing, executor, jobs, progress) -> None:
+        from tqdm import tqdm
+
+        bar = tqdm(total=sum(s.frames() for s in missing), unit="frame", desc=f"{len(missing)} OpenCV runs",
+                   disable=not progress or None)
+
+        def finished(spec, arrays):
+            self.store(spec, arrays)
+            bar.update(spec.frames())
+            bar.set_postfix_str(f"{spec.tracker} {spec.sequence.name}", refresh=False)
+
+        jobs = jobs or os.cpu_count() or 1
+        try:
+            if executor is None and jobs == 1:
+                _worker_init()
+                for spec in missing:
+                    finished(spec, run_live(spec))
+                return
+            own = executor is None
+            if own:
+                executor = futures.ProcessPoolExecutor(max_workers=min(jobs, len(missing)), initializer=_worker_init)
+            try:
+                # Longest first, so the last worker is not left alone with a long sequence.
+                ordered = sorted(missing, key=lambda s: -s.frames())
+                pending = {executor.submit(run_live, spec): spec for spec in ordered}
+                for done in futures.as_completed(pending):
+                    finished(pending[done], done.result())
+            finally:
+                if own:
+                    executor.shutdown(wait=True, cancel_futures=True)
+        finally:
+            bar.close()
+
+
+def cache_for(context) -> PeerCache:
+    """The peer cache that lives beside the context's run cache."""
+    return PeerCache(Path(context.cache.folder) / "peers")
+
+
+def live_specs(context, sequences=None) -> list[LiveSpec]:
+    """One LiveSpec per (available OpenCV tracker, sequence); default: every given sequence."""
+    sequences = context.sequences() if sequences is None else sequences
+    return [LiveSpec(s, name, context.max_frames) for name in live_trackers() for s in sequences]
+
+
+def live_results(context, sequences=None) -> dict:
+    """{tracker: {sequence name: PeerResult}} for the live OpenCV trackers (cached)."""
+    specs = live_specs(context, sequences)
+    results = cache_for(context).run(specs, executor=context.executor, jobs=context.jobs)
+    table: dict = {}
+    for spec, result in zip(specs, results):
+        table.setdefault(spec.tracker, {})[spec.sequence.name] = result
+    return table
+
+
+# --------------------------------------------------------------- shipped files
+def _candidate_names(sequence_name: str) -> list[str]:
+    """File stems a shipped result for this sequence may have (ours, the paper's, the OTB-100 one)."""
+    names = [sequence_name]
+    paper = paper_name(sequence_name)
+    if paper is not None:
+        names.append(paper)
+    # Reverse aliases (a pack 'Cliffbar' result for an OTB 'ClifBar' folder and so on).
+    names += [alias for alias, target in PAPER_NAME_OF.items() if target.lower() == sequence_name.lower()]
+    seen, unique = set(), []
+    for name in names:
+        if name.lower() not in seen:
+            seen.add(name.lower())
+            unique.append(name)
+    return unique
+
+
+def _find_file(folder: Path, stems: list[str]) -> Path | None:
+    if not folder.is_dir():
+        return None
+    files = {p.stem.lower(): p for p in folder.glob("*.txt")}
+    for stem in stems:
+        if stem.lower() in files:
+            return files[stem.lower()]
+    return None
+
+
+@dataclass
+class Shipped:
+    """Shipped peer results usable on one sequence, and what was skipped (with reasons)."""
+
+    results: dict = field(default_factory=dict)  # tracker -> PeerResult
+    notes: list = field(default_factory=list)
+
+
+def shipped_results(peer_root, sequence, trackers=SHIPPED_TRACKERS) -> Shipped:
+    """Load and check the shipped per-frame results of each peer for ``sequence``.
+
+    Parameters
+    ----------
+    peer_root : path or None
+        The ``peer_results`` folder (None: nothing shipped).
+    sequence : Sequence
+    trackers : iterable of str
+
+    Returns
+    -------
+    Shipped
+        ``results[tracker]`` holds the first file (top folder, then
+        ``sparsepack/``) that has one line per frame and starts at the
+        sequence's initial box; every other candidate file is named in
+        ``notes`` with the reason it was not used.
+    """
+    from nrmlc.data import read_box_file
+    from nrmlc.metrics import overlaps
+
+    found = Shipped()
+    if peer_root is None:
+        return found
+    peer_root = Path(peer_root)
+    stems = _candidate_names(sequence.name)
+    for tracker in trackers:
+        for sub in SHIPPED_SUBFOLDERS:
+            path = _find_file(peer_root / tracker / sub if sub else peer_root / tracker, stems)
+            if path is None:
+                continue
+            where = path.relative_to(peer_root)
+            try:
+                boxes = read_box_file(path)
+            except Exception as exc:  # a broken file is a note, not a crash of the table
+                found.notes.append(f"{tracker} on {sequence.name}: {where} unreadable ({exc})")
+                continue
+            if len(boxes) != len(sequence):
+                found.notes.append(f"{tracker} on {sequence.name}: {where} has {len(boxes)} lines for "
+                                   f"{len(sequence)} frames (another version of the sequence), not used")
+                continue
+            first = sequence.groundtruth[0]
+            if np.isfinite(first).all():
+                iou = float(overlaps(boxes[0], first))
+                if not iou >= FIRST_BOX_MIN_IOU:
+                    found.notes.append(f"{tracker} on {sequence.name}: {where} starts at "
+                                       f"{np.round(boxes[0], 1).tolist()}, not at our initial box "
+                                       f"{np.round(first, 1).tolist()} (IoU {iou:.2f}; another version), not used")
+                    continue
+            found.results[tracker] = PeerResult(boxes, float("nan"), str(where))
+            break  # the first fitting version wins; later folders hold other versions
+    return found
+
+
+def shipped_for(context, sequences=None) -> tuple[dict, list]:
+    """{tracker: {sequence name: PeerResult}} of usable shipped results, and the notes."""
+    sequences = context.sequences() if sequences is None else sequences
+    root = context.shipped_peer_root()
+    table: dict = {}
+    notes: list = []
+    if root is None:
+        if not context.is_synthetic:
+            notes.append(f"no shipped peer results found ({context.data_root.parent / 'peer_results'} missing)")
+        return table, notes
+    for sequence in sequences:
+        shipped = shipped_results(root, sequence)
+        for tracker, result in shipped.results.items():
+            table.setdefault(tracker, {})[sequence.name] = result
+        notes += shipped.notes
+    milpack = root / "MIL" / "milpack"
+    if milpack.is_dir():
+        notes.append("MIL/milpack (Babenko's MIL-dataset runs on faceocc/faceocc2) not used: its rows follow "
+                     "the MIL dataset's own frame range, not our frames")
+    return table, notes

@@ -1,0 +1,227 @@
+"""nrmlc.runner: cached, resumable grids of runs. Work is never lost.
+
+- a grid killed with SIGKILL part-way resumes without recomputing finished
+  runs and leaves no corrupt file;
+- a changed parameter recomputes exactly the runs that use it; a changed
+  code version recomputes everything;
+- a run that fails in a process pool does not throw away the runs that finished.
+"""
+from __future__ import annotations
+
+import concurrent.futures as futures
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import nrmlc.runner as runner
+from nrmlc.data import SyntheticSequence, SyntheticSpec
+from nrmlc.runner import RunCache, RunSpec, code_version, sequence_identity
+from nrmlc.tracker.params import TrackerParams
+from nrmlc.tracker.run import TrackResult
+
+REPO_ROOT = Path(__file__).resolve().parent.parent
+
+
+def tiny_sequence(k: int, n_frames: int = 6) -> SyntheticSequence:
+    return SyntheticSequence(SyntheticSpec(
+        name=f"tiny-{k}", seed=k, n_frames=n_frames, frame_height=48, frame_width=64, target_width=16,
+        target_height=12, translation_amplitude_x=8, translation_amplitude_y=6, n_distractors=1))
+
+
+def fake_arrays(spec: RunSpec) -> dict:
+    n = spec.n_frames or len(spec.sequence)
+    return TrackResult(np.full((n, 4), float(spec.seed)), np.zeros((n, 6)), {}, 0.1, 0.2).to_arrays()
+
+
+@pytest.fixture
+def counted(monkeypatch) -> list:
+    """Replace the tracking with a fake that records which runs were computed."""
+    computed = []
+
+    def fake_execute(spec, threads):
+        computed.append(spec.label)
+        return fake_arrays(spec)
+
+    monkeypatch.setattr(runner, "_execute", fake_execute)
+    return computed
+
+
+def grid(params: TrackerParams | None = None) -> list[RunSpec]:
+    params = params or TrackerParams()
+    return [RunSpec(tiny_sequence(k), params, seed=s, label=f"{k}/{s}") for k in range(2) for s in range(2)]
+
+
+# ------------------------------------------------------------- invalidation
+def test_rerun_computes_nothing(tmp_path, counted):
+    cache = RunCache(tmp_path)
+    results = cache.run(grid(), jobs=1, progress=False)
+    assert sorted(counted) == ["0/0", "0/1", "1/0", "1/1"]
+    assert [r.boxes[0, 0] for r in results] == [0, 1, 0, 1]
+    counted.clear()
+    RunCache(tmp_path).run(grid(), jobs=1, progress=False)
+    assert counted == []
+
+
+def test_changed_parameter_recomputes_exactly_its_runs(tmp_path, counted):
+    specs = grid()
+    cache = RunCache(tmp_path)
+    cache.run(specs, jobs=1, progress=False)
+    before = {p.name: p.stat().st_mtime_ns for p in tmp_path.glob("*.npz")}
+    changed = list(specs)
+    changed[2] = RunSpec(specs[2].sequence, specs[2].params.replace(lam=0.5), seed=specs[2].seed, label="changed")
+    keys = [s.key(cache.version) for s in specs]
+    new_keys = [s.key(cache.version) for s in changed]
+    assert [a != b for a, b in zip(keys, new_keys)] == [False, False, True, False]
+    counted.clear()
+    cache.run(changed, jobs=1, progress=False)
+    assert counted == ["changed"]
+    after = {p.name: p.stat().st_mtime_ns for p in tmp_path.glob("*.npz")}
+    assert {k: v for k, v in after.items() if k in before} == before  # old files untouched
+    assert set(after) - set(before) == {f"{new_keys[2]}.npz"}
+    description = json.loads((tmp_path / f"{new_keys[2]}.json").read_text())
+    assert description["params"]["lam"] == 0.5 and description["code_version"] == cache.version
+
+
+def test_changed_code_version_recomputes_everything(tmp_path, counted, monkeypatch):
+    RunCache(tmp_path).run(grid(), jobs=1, progress=False)
+    counted.clear()
+    monkeypatch.setattr(runner, "code_version", lambda: "0123456789abcdef")
+    cache = RunCache(tmp_path)
+    assert cache.version == "0123456789abcdef"
+    cache.run(grid(), jobs=1, progress=False)
+    assert sorted(counted) == ["0/0", "0/1", "1/0", "1/1"]
+    assert len(list(tmp_path.glob("*.npz"))) == 8
+
+
+def test_code_version_follows_the_sources_that_decide_the_boxes(monkeypatch):
+    version = code_version()
+    assert version == code_version() and len(version) == 16
+    original = Path.read_bytes
+    for name in ("coding.py", "nrmlc_tracker.py", "sequence.py", "synthetic.py", "geometry.py"):
+        def edited(self, name=name):
+            return original(self) + (b"\n# edited" if self.name == name else b"")
+
+        monkeypatch.setattr(Path, "read_bytes", edited)
+        assert code_version() != version, name
+    for name in ("cli.py", "video.py"):  # cannot change a box
+        monkeypatch.setattr(Path, "read_bytes", lambda self, name=name: original(self) + (b"x" if self.name == name else b""))
+        assert code_version() == version, name
+
+
+def test_initial_box_override_is_part_of_the_key():
+    sequence = tiny_sequence(0)
+    plain = RunSpec(sequence)
+    moved = RunSpec(sequence.with_init_box(sequence.init_box + [1, 0, 0, 0]))
+    assert plain.key("v") != moved.key("v")
+    assert "init_box" not in sequence_identity(sequence)  # ordinary runs keep their keys
+    assert RunSpec(sequence.with_init_box(sequence.init_box + [1, 0, 0, 0])).key("v") == moved.key("v")
+
+
+def test_failed_store_leaves_the_run_missing(tmp_path, counted, monkeypatch):
+    spec = grid()[0]
+    cache = RunCache(tmp_path)
+
+    def broken(handle, **arrays):
+        handle.write(b"PK partial")
+        raise OSError(28, "No space left on device")
+
+    monkeypatch.setattr(runner.io.np, "savez_compressed", broken)
+    with pytest.raises(OSError):
+        cache.run([spec], jobs=1, progress=False)
+    monkeypatch.undo()
+    assert not cache.has(spec) and list(tmp_path.iterdir()) == []
+    monkeypatch.setattr(runner, "_execute", lambda spec, threads: fake_arrays(spec))
+    assert cache.run([spec], jobs=1, progress=False)[0].boxes.shape == (6, 4)
+
+
+def test_pool_failure_keeps_the_finished_runs(tmp_path, monkeypatch):
+    """One run raises: the others that finish are still stored, and the error is raised."""
+    def execute(spec, threads):
+        if spec.label == "0/1":
+            raise RuntimeError("boom")
+        time.sleep(0.05)
+        return fake_arrays(spec)
+
+    monkeypatch.setattr(runner, "_execute", execute)
+    specs = grid()
+    cache = RunCache(tmp_path)
+    with futures.ThreadPoolExecutor(max_workers=4) as pool:  # all four start at once
+        with pytest.raises(RuntimeError, match="boom"):
+            cache.run(specs, executor=pool, progress=False)
+    assert [cache.has(s) for s in specs] == [True, False, True, True]
+
+
+# ------------------------------------------------------ killed and resumed
+GRID_SCRIPT = """
+import sys, time
+import nrmlc.runner as runner
+from nrmlc.data import SyntheticSequence, SyntheticSpec
+from nrmlc.tracker.params import TrackerParams
+
+computed = []
+real_execute = runner._execute
+def execute(spec, threads):
+    computed.append(spec.label)
+    time.sleep(float(sys.argv[2]))  # long enough to be killed part-way
+    return real_execute(spec, threads)
+runner._execute = execute
+runner.code_version = lambda: "fixed"  # what is tested here is resumption, not source edits
+
+params = TrackerParams(n_particles=30, n_positive=10, n_negative=20, max_positive=20)
+specs = [runner.RunSpec(SyntheticSequence(SyntheticSpec(
+             name=f"tiny-{k}", seed=k, n_frames=6, frame_height=48, frame_width=64, target_width=16,
+             target_height=12, translation_amplitude_x=8, translation_amplitude_y=6, n_distractors=1)),
+             params, seed=0, label=f"tiny-{k}") for k in range(4)]
+results = runner.RunCache(sys.argv[1]).run(specs, jobs=1, progress=False)
+assert len(results) == 4
+print("computed", len(computed), *computed)
+"""
+
+
+def run_grid(cache: Path, delay: float, **kwargs):
+    env = dict(os.environ, PYTHONPATH=str(REPO_ROOT), PYTHONHASHSEED="0")
+    return subprocess.Popen([sys.executable, "-c", GRID_SCRIPT, str(cache), str(delay)], env=env,
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, **kwargs)
+
+
+def test_killed_grid_resumes_without_recomputing(tmp_path):
+    cache = tmp_path / "cache"
+    process = run_grid(cache, 0.5)
+    deadline = time.monotonic() + 120
+    try:
+        while not list(cache.glob("*.npz")):
+            assert process.poll() is None, process.communicate()
+            assert time.monotonic() < deadline, "no result file after 120 s"
+            time.sleep(0.01)
+    finally:
+        process.send_signal(signal.SIGKILL)
+        process.communicate(timeout=30)
+    assert process.returncode == -signal.SIGKILL
+
+    done = {p.name: (p.stat().st_ino, p.stat().st_mtime_ns) for p in cache.glob("*.npz")}
+    assert 1 <= len(done) < 4  # killed part-way
+    for name in done:  # nothing corrupt under a final name
+        with np.load(cache / name) as arrays:
+            assert np.isfinite(TrackResult.from_arrays(dict(arrays)).boxes).all()
+
+    process = run_grid(cache, 0.0)
+    out, err = process.communicate(timeout=120)
+    assert process.returncode == 0, err
+    computed = out.split()
+    assert computed[:2] == ["computed", str(4 - len(done))]
+    assert len(set(computed[2:])) == len(computed[2:])
+    after = {p.name: (p.stat().st_ino, p.stat().st_mtime_ns) for p in cache.glob("*.npz")}
+    assert len(after) == 4
+    assert {name: after[name] for name in done} == done  # finished runs were neither recomputed nor rewritten
+    for name in after:
+        with np.load(cache / name) as arrays:
+            result = TrackResult.from_arrays(dict(arrays))
+        assert result.boxes.shape == (6, 4) and np.isfinite(result.boxes).all()
+        assert (cache / name).with_suffix(".json").is_file() or name in done  # killed between .npz and .json

@@ -1,0 +1,206 @@
+"""The tracker: interface, parameters, and the paper's problems resolved (README "Deviations")."""
+import numpy as np
+import pytest
+
+from nrmlc import NRMLCTracker, TrackerParams
+from nrmlc.data import SyntheticSequence, SyntheticSpec
+from nrmlc.errors import ParameterError
+from nrmlc.metrics import evaluate
+from nrmlc.tracker import track_sequence
+
+FAST = dict(n_particles=150)
+
+
+@pytest.fixture(scope="module")
+def sequence():
+    return SyntheticSequence(SyntheticSpec(name="t", seed=3, n_frames=40))
+
+
+@pytest.fixture(scope="module")
+def tracked(sequence):
+    return track_sequence(sequence, TrackerParams(**FAST), seed=0)
+
+
+@pytest.fixture(scope="module")
+def coded_frame(sequence):
+    """A tracker after a few frames, and the candidates of its last frame."""
+    tracker = NRMLCTracker(seed=0, **FAST)
+    tracker.init(sequence.frame(0), sequence.init_box)
+    for index in range(1, 8):
+        tracker.update(sequence.frame(index))
+    return tracker, tracker.last_candidates["patches"]
+
+
+def test_got10k_interface_tracks_the_synthetic_target(sequence, tracked):
+    assert tracked.boxes.shape == (len(sequence), 4)
+    np.testing.assert_allclose(tracked.boxes[0], sequence.init_box)
+    scores = evaluate(tracked.boxes, sequence.groundtruth)
+    # a static box would score far lower: the target moves ~4 px/frame
+    static = evaluate(np.tile(sequence.init_box, (len(sequence), 1)), sequence.groundtruth)
+    assert scores.mean_overlap > 0.6 and scores.mean_overlap > static.mean_overlap + 0.2
+
+
+def test_paper_defaults():
+    p = TrackerParams()
+    assert (p.n_positive, p.n_negative, p.dictionary_sizes) == (50, 150, (5, 8, 10))
+    assert (p.lam, p.beta, p.n_iterations, p.alpha) == (1.0, 0.1, 3, 2.5)
+    assert (p.update_interval, p.max_positive, p.update_error_threshold, p.patch_size) == (5, 100, 0.1, 32)
+
+
+def test_same_seed_same_boxes_and_different_seeds_differ(sequence, tracked):
+    again = track_sequence(sequence, TrackerParams(**FAST), seed=0, n_frames=15)
+    assert np.array_equal(again.boxes, tracked.boxes[:15])
+    other = track_sequence(sequence, TrackerParams(**FAST), seed=1, n_frames=15)
+    assert not np.array_equal(other.boxes, tracked.boxes[:15])
+
+
+def test_diagnostics_are_complete_and_finite(tracked):
+    d = tracked.diagnostics
+    for name in ("confidence", "error_positive", "error_negative", "negative_share_c", "negative_share_w"):
+        assert np.all(np.isfinite(d[name][1:])), name
+    assert d["codes"].shape[1:] == (10,) and d["coefficients"].shape[1:] == (3, 10)
+    # the code's positive/negative split adds up to the whole code
+    np.testing.assert_allclose(d["code_sum_positive"][1:] + d["code_sum_negative"][1:], d["codes"][1:].sum(axis=1))
+
+
+@pytest.mark.parametrize("changes, name", [
+    (dict(dictionary_sizes=(5, 8, 300)), "dictionary_sizes"),
+    (dict(lam=-1.0), "lam"),
+    (dict(beta=-0.1), "beta"),
+    (dict(n_particles=0), "n_particles"),
+    (dict(coding="lasso"), "coding"),
+    (dict(confidence="other"), "confidence"),
+    (dict(motion_sigmas=(1, 2, 3)), "motion_sigmas"),
+    (dict(positive_radius=20.0), "negative_radius"),
+])
+def test_invalid_parameters_name_the_parameter(changes, name):
+    with pytest.raises(ParameterError, match=name):
+        TrackerParams(**changes)
+
+
+def test_unknown_parameter_is_named():
+    with pytest.raises(ParameterError, match="bogus"):
+        NRMLCTracker(seed=0, bogus=1)
+
+
+def test_update_before_init_is_an_error():
+    with pytest.raises(ParameterError, match="init"):
+        NRMLCTracker().update(np.zeros((20, 20), np.float32))
+
+
+# -- the paper's problems (see README, "Deviations from the paper") --------------
+
+def test_problem1_literal_confidence_prefers_the_worst_candidate(coded_frame):
+    """Eq. (conf) as printed, 1/exp(-a(e_pos - e_neg)), ranks candidates in reverse."""
+    tracker, patches = coded_frame
+    corrected = tracker.encode(patches)["confidence"]
+    tracker.params = tracker.params.replace(confidence="literal")
+    try:
+        literal = tracker.encode(patches)["confidence"]
+    finally:
+        tracker.params = tracker.params.replace(confidence="corrected")
+    np.testing.assert_allclose(literal * corrected, 1.0, rtol=1e-12)
+    assert np.argmax(literal) == np.argmin(corrected)
+
+
+def test_problem1_literal_confidence_loses_the_target(sequence, tracked):
+    literal = track_sequence(sequence, TrackerParams(confidence="literal", **FAST), seed=0)
+    assert evaluate(literal.boxes, sequence.groundtruth).mean_overlap < 0.3
+    assert evaluate(tracked.boxes, sequence.groundtruth).mean_overlap > 0.6
+
+
+def test_problem2_printed_closed_form_does_not_sum_to_one(coded_frame):
+    """c = (A'A + lam I)^-1 1 needs rescaling; the rescaled c is the constrained minimiser."""
+    tracker, patches = coded_frame
+    y = patches[0].astype(np.float64)
+    coded = tracker.encode(patches)
+    basis = tracker.templates[coded["neighbours"][0, :5]].astype(np.float64).T  # (1024, 5)
+    a = basis - y[:, None]
+    f = a.T @ a + 1.0 * np.eye(5)
+    printed = np.linalg.solve(f, np.ones(5))
+    assert abs(printed.sum() - 1) > 0.5  # the printed form is far from sum-to-one
+    rescaled = printed / printed.sum()
+    np.testing.assert_allclose(coded["coefficients"][0, 0, :5], rescaled, rtol=1e-4, atol=1e-6)
+    # and it minimises ||y - Bc||^2 + lam ||c||^2 over 1'c = 1: any feasible step increases it
+    objective = lambda c: np.sum((y - basis @ c) ** 2) + np.sum(c**2)
+    rng = np.random.default_rng(0)
+    for _ in range(20):
+        step = rng.normal(size=5)
+        step -= step.mean()
+        assert objective(rescaled + 1e-3 * step) > objective(rescaled)
+
+
+def test_problem3_algorithm1_is_at_its_fixed_point_after_one_step(coded_frame):
+    """w's problem (eq. allcw) does not depend on d: T = 2, 3, 10 give the same codes."""
+    tracker, patches = coded_frame
+    original = tracker.params
+    results = {}
+    try:
+        for iterations in (1, 2, 3, 10):
+            tracker.params = original.replace(n_iterations=iterations)
+            results[iterations] = tracker.encode(patches)
+    finally:
+        tracker.params = original
+    for iterations in (3, 10):
+        assert np.array_equal(results[iterations]["codes"], results[2]["codes"])
+        assert np.array_equal(results[iterations]["weights"], results[2]["weights"])
+    # T = 1 outputs d computed with the initial uniform w (step 3.1 before 3.2)
+    uniform = (results[1]["coefficients"]).mean(axis=1)
+    np.testing.assert_allclose(results[1]["codes"], uniform, atol=1e-12)
+    assert not np.allclose(results[1]["codes"], results[2]["codes"])
+
+
+def test_problem4_occlusion_threshold_is_a_parameter(coded_frame):
+    tracker, _ = coded_frame
+    assert tracker.params.occlusion_max_negative == TrackerParams().occlusion_max_negative
+    last = tracker.last
+    assert last.occluded == (last.n_negative_used > tracker.params.occlusion_max_negative)
+
+
+def test_problem5_errors_are_squared_distances_of_unit_vectors(coded_frame):
+    tracker, patches = coded_frame
+    coded = tracker.encode(patches)
+    n_pos = len(tracker.positive_templates)
+    i = int(np.argmax(coded["confidence"]))
+    d = np.zeros(len(tracker.templates))
+    d[coded["neighbours"][i]] = coded["codes"][i]
+    y = patches[i].astype(np.float64)
+    templates = tracker.templates.astype(np.float64)
+    e_pos = np.sum((y - templates[:n_pos].T @ d[:n_pos]) ** 2)
+    e_neg = np.sum((y - templates[n_pos:].T @ d[n_pos:]) ** 2)
+    np.testing.assert_allclose([coded["error_positive"][i], coded["error_negative"][i]], [e_pos, e_neg], atol=1e-5)
+    assert np.all((coded["error_positive"] >= -1e-9) & (coded["error_positive"] <= 4 + 1e-9))
+
+
+def test_positive_set_is_capped_and_replaces_the_closest(sequence):
+    tracker = NRMLCTracker(seed=0, n_particles=50, n_positive=3, max_positive=4, update_interval=1,
+                           update_error_threshold=4.0, occlusion_detection=False)
+    tracker.init(sequence.frame(0), sequence.init_box)
+    counts = []
+    for index in range(1, 6):
+        tracker.update(sequence.frame(index))
+        counts.append(len(tracker.positive_templates))
+    assert counts == [4, 4, 4, 4, 4]
+    # the newest result is in the set
+    new = tracker.last_candidates["patches"][tracker.last_candidates["best"]]
+    assert np.any(np.all(tracker.positive_templates == new, axis=1))
+
+
+def test_occlusion_blocks_positive_updates(sequence):
+    kwargs = dict(n_particles=50, update_interval=1, update_error_threshold=4.0)
+    blocked = NRMLCTracker(seed=0, occlusion_max_negative=-1, **kwargs)  # every frame counts as occluded
+    free = NRMLCTracker(seed=0, occlusion_max_negative=-1, occlusion_detection=False, **kwargs)
+    for tracker in (blocked, free):
+        tracker.init(sequence.frame(0), sequence.init_box)
+        for index in range(1, 4):
+            tracker.update(sequence.frame(index))
+    assert len(blocked.positive_templates) == 50 and len(free.positive_templates) == 53
+
+
+@pytest.mark.parametrize("coding", ["constrained", "plain"])
+def test_other_coding_modes_track(sequence, coding):
+    result = track_sequence(sequence, TrackerParams(coding=coding, **FAST), seed=0, n_frames=20)
+    assert np.all(np.isfinite(result.boxes))
+    if coding == "constrained":
+        assert np.all(result.diagnostics["negative_share_c"][1:] == 0)
+        assert np.all(result.diagnostics["negative_share_w"][1:] == 0)
