@@ -172,4 +172,4 @@ def main(context=None) -> dict:
 
 
 if __name__ == "__main__":
-    main()
+    print(main()["markdown"])

@@ -287,17 +287,18 @@ def pooled(collections: list[dict], name: str) -> np.ndarray:
 
 
 # --------------------------------------------------------------------------- solvers
-def ridge_inverse(gram: np.ndarray, lam: float) -> np.ndarray:
+def ridge_inverse(gram, lam: float) -> np.ndarray:
     """``(G + lam I)^{-1}`` for a batch of symmetric PSD ``G`` (..., k, k).
 
     Through the eigen-decomposition, so ``lam = 0`` with a singular ``G`` gives the
     pseudo-inverse (the ``lam -> 0+`` limit of the sum-to-one solution) instead of noise.
+    ``gram`` may also be a precomputed ``np.linalg.eigh(G)`` pair (reused across lambdas).
     """
-    values, vectors = np.linalg.eigh(gram)
+    values, vectors = gram if isinstance(gram, tuple) else np.linalg.eigh(gram)
     values = np.clip(values, 0.0, None) + lam
     scale = np.max(np.abs(values), axis=-1, keepdims=True)
     inv = np.where(values > 1e-13 * scale, 1.0 / np.where(values > 0, values, 1.0), 0.0)
-    return np.einsum("...ij,...j,...kj->...ik", vectors, inv, vectors)
+    return (vectors * inv[..., None, :]) @ np.swapaxes(vectors, -1, -2)
 
 
 def sum_to_one_codes(gram: np.ndarray, lam: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -348,7 +349,7 @@ def dictionary_weights(gram: np.ndarray, codes_by_size: list[np.ndarray], beta: 
     C = np.zeros((n, k_max, len(codes_by_size)))
     for j, codes in enumerate(codes_by_size):
         C[:, : codes.shape[1], j] = codes
-    H = np.einsum("naj,nab,nbl->njl", C, gram, C)
+    H = np.swapaxes(C, 1, 2) @ (gram @ C)
     return sum_to_one_codes(H, beta)[2]
 
 

@@ -350,6 +350,66 @@ def bench_startup(n_threads: int, warm_repeats: int = 2) -> dict:
 
 
 # ---------------------------------------------------------------------------
+# thread policy
+# ---------------------------------------------------------------------------
+
+_THREADS_CHILD = r"""
+import json, sys, time
+from nrmlc.config import set_threads
+from threadpoolctl import threadpool_limits
+import numba
+n_numba, n_blas, n_frames = (int(v) for v in sys.argv[1:4])
+set_threads(n_numba)
+threadpool_limits(limits=n_blas, user_api="blas")
+from nrmlc.data import synthetic_suite
+from nrmlc.tracker.run import track_sequence
+sequence = synthetic_suite(n_frames=n_frames)[0]
+track_sequence(sequence, n_frames=6)
+cpu = time.process_time()
+result = track_sequence(sequence, n_frames=n_frames)
+print(json.dumps({"fps": result.fps_tracking, "cpu_ms_per_frame": 1e3 * (time.process_time() - cpu) / (n_frames - 1),
+                  "numba_layer": numba.threading_layer()}))
+"""
+
+
+def thread_configurations(n_threads: int) -> dict:
+    """name -> (extra environment, numba threads, BLAS threads)."""
+    n = n_threads
+    return {
+        "serial (numba 1, BLAS 1)": ({}, 1, 1),
+        f"numba {n} spin-wait + BLAS {n} (libgomp default)": ({"GOMP_SPINCOUNT": "300000"}, n, n),
+        f"numba {n} + BLAS {n}": ({}, n, n),
+        f"numba {n} + BLAS 1": ({}, n, 1),
+    }
+
+
+def bench_threads(n_threads: int, rounds: int = 2, n_frames: int = 60) -> list[dict]:
+    """Tracker fps and CPU per frame under several thread set-ups, each in a fresh process.
+
+    The set-ups run interleaved, ``rounds`` times, so that a change of machine
+    load hits them all alike; the median is reported.
+    """
+    configurations = thread_configurations(n_threads)
+    samples = {name: [] for name in configurations}
+    for _ in range(rounds):
+        for name, (extra_env, n_numba, n_blas) in configurations.items():
+            env = dict(os.environ, **extra_env)
+            output = subprocess.run([sys.executable, "-c", _THREADS_CHILD, str(n_numba), str(n_blas), str(n_frames)],
+                                    env=env, cwd=str(REPO_ROOT), capture_output=True, text=True, check=True)
+            samples[name].append(json.loads(output.stdout.strip().splitlines()[-1]))
+    rows = []
+    for name, runs in samples.items():
+        row = {"setup": name, "runs": len(runs), "frames": n_frames,
+               "fps": float(np.median([r["fps"] for r in runs])),
+               "cpu_ms_per_frame": float(np.median([r["cpu_ms_per_frame"] for r in runs])),
+               "fps_all": [round(r["fps"], 1) for r in runs]}
+        rows.append(row)
+        print(f"  {name:48s} {row['fps']:7.1f} fps  {row['cpu_ms_per_frame']:6.1f} ms CPU/frame  "
+              f"(runs: {row['fps_all']})", flush=True)
+    return rows
+
+
+# ---------------------------------------------------------------------------
 # report
 # ---------------------------------------------------------------------------
 
@@ -378,6 +438,11 @@ def _markdown(result: dict) -> str:
     for row in result["end_to_end"]:
         total = f"{row['fps_total']:.1f}" if "fps_total" in row else "n/a (frames preloaded)"
         lines.append(f"| {row['sequence']} | {row['tracker']} | {row['frames']} | {row['fps_tracking']:.1f} | {total} |")
+    if result.get("threads"):
+        lines += ["", "## Thread set-ups (synthetic sequence, fresh process each, median of runs)", "",
+                  "| set-up | fps | CPU ms / frame | runs (fps) |", "|---|---:|---:|---|"]
+        for row in result["threads"]:
+            lines.append(f"| {row['setup']} | {row['fps']:.1f} | {row['cpu_ms_per_frame']:.1f} | {row['fps_all']} |")
     summary = result.get("summary", {})
     if summary:
         lines += ["", "## Summary", ""]
@@ -419,12 +484,17 @@ def _summary(result: dict) -> dict:
 
 def run(data: Path | None, out_dir: Path, n_threads: int | None, counts=PARTICLE_COUNTS, repeats: int = 15,
         reference_repeats: int = 2, synthetic_frames: int = 120, real_frames: int | None = None,
-        e2e_repeats: int = 3, startup: bool = True, reference_subset: dict | None = None) -> dict:
+        e2e_repeats: int = 3, startup: bool = True, reference_subset: dict | None = None,
+        thread_study: bool = True, blas_threads: int | None = None) -> dict:
     from nrmlc.config import set_threads
     from nrmlc.data import open_sequence, synthetic_suite
 
     began = time.perf_counter()
     threads = set_threads(n_threads)
+    if blas_threads is not None:
+        from threadpoolctl import threadpool_limits
+
+        threadpool_limits(limits=blas_threads, user_api="blas")
     result = {"load_before": _load_average()}
     synthetic = synthetic_suite(n_frames=synthetic_frames)[0]
     print(f"kernels ({synthetic.name}, {threads} threads):", flush=True)
@@ -439,6 +509,10 @@ def run(data: Path | None, out_dir: Path, n_threads: int | None, counts=PARTICLE
             result["end_to_end"] += bench_end_to_end(open_sequence(car4), real_frames, 1)
         else:
             print(f"  (no Car4 under {data}; skipped)", flush=True)
+    result["threads"] = None
+    if thread_study:
+        print("thread set-ups:", flush=True)
+        result["threads"] = bench_threads(threads)
     result["startup"] = None
     if startup:
         print("start-up:", flush=True)
@@ -461,13 +535,17 @@ def main(argv=None) -> dict:
     parser.add_argument("--data", type=Path, default=None, help="folder of real sequences (uses <data>/Car4)")
     parser.add_argument("--out", type=Path, default=REPO_ROOT / "figures", help="where bench.json/bench.md go")
     parser.add_argument("--threads", type=int, default=None, help="threads for numba, BLAS and OpenCV (default: all cores)")
-    parser.add_argument("--quick", action="store_true", help="tiny settings (for tests): N=50, few repeats, no start-up")
+    parser.add_argument("--blas-threads", type=int, default=None,
+                        help="override the BLAS thread count set by set_threads (to compare policies)")
+    parser.add_argument("--quick", action="store_true",
+                        help="tiny settings (for tests): N=50, few repeats, no start-up or thread study")
     args = parser.parse_args(argv)
     if args.quick:
         return run(args.data, args.out, args.threads, counts=(50,), repeats=2, reference_repeats=1,
                    synthetic_frames=12, real_frames=12, e2e_repeats=1, startup=False,
-                   reference_subset={"regularized": 10, "plain": 10, "constrained": 4})
-    return run(args.data, args.out, args.threads)
+                   reference_subset={"regularized": 10, "plain": 10, "constrained": 4}, thread_study=False,
+                   blas_threads=args.blas_threads)
+    return run(args.data, args.out, args.threads, blas_threads=args.blas_threads)
 
 
 if __name__ == "__main__":

@@ -169,7 +169,8 @@ def _markdown(result) -> str:
         f"### Fig. 1: coding coefficients without / with the l2 term ({result['sequence']})",
         "",
         f"Sequence {result['sequence']} (the paper uses Singer1), seed {result['seed']}, {result['n_frames']} frames "
-        f"tracked by each tracker; other parameters: {result['params_description']}. Shown frame: #{result['frame'] + 1} ({result['frame_rule']}). "
+        f"tracked by each tracker; other parameters: {result['params_description']}. "
+        f"Shown frame: #{result['frame'] + 1} ({result['frame_rule']}). "
         "Template numbering as in the paper: positives first, then negatives.",
         "",
         "| | paper (Singer1) | no l2 (lambda = beta = 0) | lambda = 1, beta = 0.1 |",

@@ -42,6 +42,11 @@ def runs(context) -> list:
     return context.specs(_sequences(context), seeds=context.seeds[:1], label="fig3")
 
 
+def peer_runs(context) -> list:
+    """The live OpenCV runs drawn (the same as the tables')."""
+    return peers.live_specs(context, _sequences(context))
+
+
 def frame_indices(n_frames: int, count: int = FRAMES_PER_SEQUENCE) -> list[int]:
     """``count`` evenly spaced 0-based frames, the last frame included and frame 0 left out."""
     if n_frames <= 1:
@@ -151,4 +156,4 @@ def main(context=None) -> dict:
 
 
 if __name__ == "__main__":
-    main()
+    print(main()["markdown"])

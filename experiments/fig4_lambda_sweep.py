@@ -141,4 +141,4 @@ def main(context=None) -> dict:
 
 
 if __name__ == "__main__":
-    main()
+    print(main()["markdown"])

@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import matplotlib.pyplot as plt
 import numpy as np
-from matplotlib.patches import Rectangle
+from matplotlib.patches import Patch, Rectangle
 
 from experiments.analysis_common import Budget, budget_for, describe_params, get_context, tracker_params
 from nrmlc import io
@@ -154,7 +154,9 @@ def main(context=None, budget: Budget | None = None) -> dict:
             "n_positive_templates": n_pos, "n_templates": len(d),
         },
         "whole_run": {"share_frames_flagged": float(flags[1:].mean()) if n > 1 else 0.0,
-                      "mean_len_neg": float(lengths[1:].mean()) if n > 1 else 0.0},
+                      "mean_len_neg": float(lengths[1:].mean()) if n > 1 else 0.0,
+                      "max_len_neg": int(lengths[1:].max()) if n > 1 else 0,
+                      "max_len_neg_frame": int(np.argmax(lengths[1:]) + 1) if n > 1 else 0},
         "synthetic_flag_statistics": {**stats, "seeds": list(synthetic_seeds)},
     }
     io.write_json(context.output(STEM, ".json"), result)
@@ -185,16 +187,16 @@ def _plot(context, sequence, run, frame, d, n_pos, lengths, flags, truth, thresh
     index = np.arange(1, len(d) + 1)
     positive = index <= n_pos
     used = np.abs(d) > 0
-    ax.bar(index[positive & used], d[positive & used], width=1.5, color="tab:blue",
-           label=f"positive templates ({int((positive & used).sum())} used)")
-    ax.bar(index[~positive & used], d[~positive & used], width=1.5, color="tab:red",
-           label=f"negative templates ({int((~positive & used).sum())} used)")
+    ax.bar(index[positive & used], d[positive & used], width=1.5, color="tab:blue")
+    ax.bar(index[~positive & used], d[~positive & used], width=1.5, color="tab:red")
+    handles = [Patch(color="tab:blue", label=f"positive templates ({int((positive & used).sum())} used)"),
+               Patch(color="tab:red", label=f"negative templates ({int((~positive & used).sum())} used)")]
     ax.axvline(n_pos + 0.5, color="0.5", ls=":", lw=1)
     ax.axhline(0, color="0.6", lw=0.8)
     ax.set_xlim(0.5, len(d) + 0.5)
     ax.set_xlabel(f"template index (#1-#{n_pos} positive, #{n_pos + 1}-#{len(d)} negative)")
     ax.set_ylabel("coefficient $d$ of the best candidate")
-    ax.legend(fontsize=8)
+    ax.legend(handles=handles, fontsize=8)
     ax.grid(alpha=0.3)
 
     ax = fig.add_subplot(grid[1, :])
@@ -241,9 +243,10 @@ def _markdown(result, title) -> str:
         f"| sum of d on positive / negative templates | - | {at['sum_positive']:.3f} / {at['sum_negative']:.3f} |",
         f"| share of frames flagged over the run | - | {whole['share_frames_flagged']:.1%} |",
         f"| mean LEN(neg*) over the run | - | {whole['mean_len_neg']:.2f} |",
+        f"| max LEN(neg*) over the run | - | {whole['max_len_neg']} (frame #{whole['max_len_neg_frame'] + 1}) |",
         "",
         f"Flag vs annotated occlusion (synthetic suite: {', '.join(stats['sequences'])}; seeds {stats['seeds']}; "
-        "same parameters): the flag fires on {rate(stats['flag_rate_occluded_frames'])} of the "
+        f"same parameters): the flag fires on {rate(stats['flag_rate_occluded_frames'])} of the "
         f"{stats['occluded_frames']} annotated-occlusion frames and on {rate(stats['flag_rate_other_frames'])} of the "
         f"{stats['other_frames']} other frames; mean LEN(neg*) {stats['mean_len_neg_occluded'] or 0:.2f} vs "
         f"{stats['mean_len_neg_other'] or 0:.2f}. Per sequence (occluded / other): "

@@ -8,10 +8,10 @@ Usage::
 Steps:
 
 1. build the :class:`~experiments.common.Context` (data, seeds, run cache);
-2. collect the RunSpecs of every script (``runs(context)``) and the live
-   OpenCV peer runs, print the size of the grid, and run the union in one
-   pool (cached runs are skipped, so a rerun or an interrupted run costs only
-   what is missing);
+2. collect the RunSpecs of every script (``runs(context)``) and its live
+   OpenCV peer runs (``peer_runs(context)``), print the size of the grid,
+   and run the union in one pool of warmed-up workers (cached runs are
+   skipped, so a rerun or an interrupted run costs only what is missing);
 3. call each script's ``main(context)`` in the paper's order (they read the
    cached results); a script that is not there is skipped with a note, one
    that fails is reported (traceback on stderr, a note in the report) and
@@ -30,6 +30,7 @@ import traceback
 
 from experiments import peers, report
 from experiments.common import add_arguments, context_from_namespace, spec_frames
+from nrmlc.errors import NrmlcError
 
 #: Every script, in the paper's order: (module, whether it is ours to require).
 #: The analysis scripts (theorem, Fig. 1/2, statistics, occlusion) are written
@@ -77,18 +78,19 @@ def import_scripts(selected, notes: list, failures: list) -> list:
     return modules
 
 
-def collect_specs(context, modules, failures: list) -> dict:
-    """{script: its RunSpecs} for every script that has ``runs``."""
-    specs = {}
+def collect_specs(context, modules, failures: list) -> tuple[dict, list]:
+    """{script: its RunSpecs} for every script that has ``runs``, and the union of their ``peer_runs``."""
+    specs, peer_specs = {}, {}
     for module in modules:
-        if not hasattr(module, "runs"):
-            continue
         try:
-            specs[_short(module.__name__)] = list(module.runs(context))
+            if hasattr(module, "runs"):
+                specs[_short(module.__name__)] = list(module.runs(context))
+            if hasattr(module, "peer_runs"):
+                peer_specs.update((spec.key(), spec) for spec in module.peer_runs(context))
         except Exception as exc:
             traceback.print_exc()
             failures.append((_short(module.__name__), f"runs() failed: {exc!r}"))
-    return specs
+    return specs, sorted(peer_specs.values(), key=lambda s: -s.frames())
 
 
 def grid_summary(context, specs_by_script: dict, peer_specs: list) -> tuple[list, dict, str]:
@@ -207,7 +209,18 @@ def main(argv=None) -> int:
     start = time.perf_counter()
     parser = build_parser()
     args = parser.parse_args(argv)
-    context = context_from_namespace(args)
+    selected = None if args.only is None else {s.strip() for s in args.only.split(",") if s.strip()}
+    if selected is not None:
+        unknown = selected - {_short(n) for n, _ in SCRIPTS}
+        if unknown:
+            parser.error(f"--only: unknown script(s) {', '.join(sorted(unknown))}; "
+                         f"choose from {', '.join(_short(n) for n, _ in SCRIPTS)}")
+    try:
+        context = context_from_namespace(args)
+        context.sequences()  # an empty or broken data root fails here, with the file named
+    except NrmlcError as exc:  # a wrong --data or --param: one line, no traceback
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
     client = None
     if args.dask:
         try:
@@ -217,12 +230,6 @@ def main(argv=None) -> int:
                          "(pip install distributed); without --dask the grid runs in a local process pool")
         client = Client(args.dask)
         context.executor = client.get_executor()
-    selected = None if args.only is None else {s.strip() for s in args.only.split(",") if s.strip()}
-    if selected is not None:
-        unknown = selected - {_short(n) for n, _ in SCRIPTS}
-        if unknown:
-            parser.error(f"--only: unknown script(s) {', '.join(sorted(unknown))}; "
-                         f"choose from {', '.join(_short(n) for n, _ in SCRIPTS)}")
 
     notes: list[str] = []
     failures: list[tuple[str, str]] = []
@@ -230,8 +237,7 @@ def main(argv=None) -> int:
         print(f"[run_all] data: {context.data_label}; {len(context.sequences())} sequences; "
               f"{context.describe_grid()}", file=sys.stderr)
         modules = import_scripts(selected, notes, failures)
-        specs = collect_specs(context, modules, failures)
-        peer_specs = peers.live_specs(context) if specs else []
+        specs, peer_specs = collect_specs(context, modules, failures)
         missing, counts, summary = grid_summary(context, specs, peer_specs)
         print(summary, file=sys.stderr, flush=True)
         if args.dry_run:

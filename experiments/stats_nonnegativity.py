@@ -36,6 +36,7 @@ def analyse(grams: np.ndarray, is_best: np.ndarray, lams=LAMBDAS, sizes=SIZES, b
     """One row per lambda: nonnegativity statistics of the same candidates."""
     rows = []
     bound = {k: max_offdiag_row_sum(grams[:, :k, :k]) for k in sizes}
+    eigen = {k: np.linalg.eigh(grams[:, :k, :k]) for k in sizes}  # reused for every lambda
     k_max = max(sizes)
     for lam in lams:
         row = {"lambda": float(lam)}
@@ -44,7 +45,7 @@ def analyse(grams: np.ndarray, is_best: np.ndarray, lams=LAMBDAS, sizes=SIZES, b
         any_negative = np.zeros(len(grams), dtype=bool)
         for k in sizes:
             block = grams[:, :k, :k]
-            inverse, raw, codes = sum_to_one_codes(block, lam)
+            inverse, raw, codes = sum_to_one_codes(eigen[k], lam)
             codes_by_size.append(codes)
             negative = codes < 0
             negative_entries += int(negative.sum())

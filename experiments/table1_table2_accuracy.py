@@ -44,6 +44,11 @@ def runs(context) -> list:
     return context.specs(context.sequences(), seeds=context.seeds, label="table")
 
 
+def peer_runs(context) -> list:
+    """The live OpenCV runs the tables need (every available tracker on every given sequence)."""
+    return peers.live_specs(context, context.sequences())
+
+
 def _columns(live: list[str]) -> list[str]:
     return [OURS, OURS_PAPER] + [peers.live_label(name) for name in live] + list(paper.PEERS)
 
@@ -317,6 +322,10 @@ def main(context=None) -> dict:
     elif missing:
         text.append(f"The paper's {', '.join(missing)} are not in the data given: their rows are left out; "
                     f"each average is over the rows shown, and the paper's own average over all 12 is added.")
+    renamed = [f"{n} ({data['paper_names'][n]})" for n in paper_block if data["paper_names"][n] != n]
+    if renamed:
+        text.append(f"{', '.join(renamed)}: the sparse-tracker version of the paper's sequence (a few frames more, "
+                    "keyframe ground truth), so the paper's numbers on its row are on a slightly different video.")
     live = ", ".join(peers.live_label(n) for n in data["live"])
     text.append(f"{live}: run live on the same frames (deterministic, one run; OpenCV {peers.opencv_version()}"
                 f"{'' if len(data['live']) > 1 else '; TrackerKCF/TrackerCSRT need opencv-contrib-python'}). "
@@ -343,4 +352,4 @@ def main(context=None) -> dict:
 
 
 if __name__ == "__main__":
-    main()
+    print(main()["markdown"])

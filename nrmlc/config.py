@@ -8,8 +8,6 @@ from __future__ import annotations
 
 import os
 
-import numba
-
 #: Flags shared by every compiled kernel. ``cache=True`` keeps the warm start
 #: short (compiled code lives next to the sources in ``__pycache__``).
 #: fastmath is limited to flags that cannot turn finite input into NaN or hide
@@ -48,6 +46,7 @@ def set_threads(n_threads: int | None) -> int:
     Returns the thread count applied.
     """
     import cv2
+    import numba
     from threadpoolctl import threadpool_limits
 
     n_cores = os.cpu_count() or 1

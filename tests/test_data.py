@@ -204,7 +204,7 @@ def test_missing_groundtruth_needs_an_init_box(tmp_path):
         sequence.with_init_box([1, 1, 0, 2])
 
 
-@pytest.mark.parametrize("first_line", ["0,0,0,0", "NaN,NaN,NaN,NaN", "3,3,0,5"])
+@pytest.mark.parametrize("first_line", ["0,0,0,0", "NaN,NaN,NaN,NaN", "NaN,3,4,5"])
 def test_unusable_first_box_names_the_file(tmp_path, first_line):
     folder = make_sequence_folder(tmp_path / "Seq", n_frames=2, groundtruth=f"{first_line}\n1,1,2,2\n")
     sequence = open_sequence(folder)

@@ -20,7 +20,7 @@ import pytest
 
 from nrmlc import io
 from nrmlc.data import open_sequence, synthetic_suite, write_otb_sequence
-from nrmlc.errors import DataError, ParameterError
+from nrmlc.errors import ParameterError
 from nrmlc.metrics import evaluate
 from nrmlc.tracker.nrmlc_tracker import FrameResult, NRMLCTracker, as_gray_frame, clip_initial_box
 from nrmlc.tracker.params import TrackerParams

@@ -1,6 +1,16 @@
-"""The NRMLC tracker: parameters, the tracker, and whole-sequence runs."""
-from nrmlc.tracker.nrmlc_tracker import FrameResult, NRMLCTracker
-from nrmlc.tracker.params import TrackerParams
-from nrmlc.tracker.run import TrackResult, track_sequence
+"""The NRMLC tracker: parameters, the tracker, and whole-sequence runs.
 
+Imports are lazy so that ``python -m nrmlc evaluate`` does not load numba.
+"""
 __all__ = ["NRMLCTracker", "TrackerParams", "FrameResult", "TrackResult", "track_sequence"]
+
+_WHERE = {"NRMLCTracker": "nrmlc_tracker", "FrameResult": "nrmlc_tracker", "TrackerParams": "params",
+          "TrackResult": "run", "track_sequence": "run"}
+
+
+def __getattr__(name):
+    if name in _WHERE:
+        import importlib
+
+        return getattr(importlib.import_module(f"nrmlc.tracker.{_WHERE[name]}"), name)
+    raise AttributeError(f"module 'nrmlc.tracker' has no attribute {name!r}")
