@@ -10,6 +10,7 @@ VENV        ?= .venv
 PY          := $(VENV)/bin/python
 DATA        ?=
 SEEDS       ?=
+SWEEP_SEEDS ?=
 JOBS        ?=
 STAMP       := $(VENV)/.installed
 
@@ -32,7 +33,7 @@ test: $(STAMP)
 	$(PY) -m pytest
 
 figures: $(STAMP)
-	$(PY) -m experiments.run_all $(if $(DATA),--data "$(DATA)") $(if $(SEEDS),--seeds $(SEEDS)) $(if $(JOBS),--jobs $(JOBS))
+	$(PY) -m experiments.run_all $(if $(DATA),--data "$(DATA)") $(if $(SEEDS),--seeds $(SEEDS)) $(if $(SWEEP_SEEDS),--sweep-seeds $(SWEEP_SEEDS)) $(if $(JOBS),--jobs $(JOBS))
 
 theorem: $(STAMP)
 	$(PY) -m experiments.theorem1_checks

@@ -37,7 +37,7 @@ from nrmlc.runner import code_version, sequence_identity
 from nrmlc.tracker.params import TrackerParams
 
 #: Bump when the recorded content changes (invalidates the collection cache).
-COLLECTOR_VERSION = 2
+COLLECTOR_VERSION = 3
 
 #: Nearest templates recorded per candidate (k_max = 10 of the tracker, plus
 #: more for the randomised counterexample search of theorem1_checks).
@@ -246,6 +246,7 @@ def _collect_uncached(sequence, params: TrackerParams, seed: int, budget: Budget
     arrays["boxes"] = np.array(boxes)
     arrays["seconds"] = np.float64(time.perf_counter() - start)
     arrays["n_tracked"] = np.int64(n_frames)
+    arrays["code_version"] = np.array(code_version())
     io.write_npz(path, **arrays)
     return path
 
@@ -273,6 +274,8 @@ def collect_many(context, sequences: list, budget: Budget, seed: int = 0,
     else:
         for s, p in missing:
             _collect_uncached(s, params, seed, budget, str(p))
+    if missing:
+        prune_stale(folder)
     results = []
     for s, p in zip(sequences, paths):
         with np.load(p) as arrays:
@@ -280,6 +283,23 @@ def collect_many(context, sequences: list, budget: Budget, seed: int = 0,
         data["name"] = s.name
         results.append(data)
     return results
+
+
+def prune_stale(folder: Path) -> int:
+    """Delete collections recorded under another tracker code version (they can never
+    be hit again: the key includes the version). Returns how many were removed."""
+    current = code_version()
+    removed = 0
+    for path in Path(folder).glob("collect-*.npz"):
+        try:
+            with np.load(path) as arrays:
+                version = str(arrays["code_version"]) if "code_version" in arrays.files else None
+            if version != current:
+                path.unlink()
+                removed += 1
+        except (OSError, ValueError, KeyError):  # unreadable or vanished: leave it
+            continue
+    return removed
 
 
 def pooled(collections: list[dict], name: str) -> np.ndarray:
@@ -373,4 +393,4 @@ def budget_dict(budget: Budget) -> dict:
 
 
 __all__ = ["Budget", "budget_for", "collect_many", "sum_to_one_codes", "strictly_dd", "dictionary_weights",
-           "ridge_inverse", "max_offdiag_row_sum", "LAMBDAS", "N_NEAREST", "replace"]
+           "ridge_inverse", "max_offdiag_row_sum", "LAMBDAS", "N_NEAREST"]

@@ -11,6 +11,9 @@ number in ``figures/bench.json``:
 * end to end: tracker fps on the synthetic default sequence (and on
   ``<data>/Car4`` when ``--data`` is given), frame decoding excluded and
   included, and OpenCV's TrackerMIL on the same frames;
+* thread set-ups: the tracker's fps and CPU time per frame with numba and
+  BLAS at 1 or all threads, OpenMP spin-waiting or not, each in a fresh
+  subprocess (the evidence for the thread policy);
 * start-up: numba compile time cold (empty cache) and warm (on-disk cache),
   each in a fresh subprocess;
 * the machine: CPU, threads, library versions, load average.
@@ -32,9 +35,9 @@ References (what "plain numpy" means, column ``reference`` of the table):
 * tracker frame: no separate reference; its ``reference`` is the sum of the
   kernel references at that N (an estimate, marked as such).
 
-Threads: the bench pins numba, OpenBLAS and OpenCV to the same count
-(:func:`nrmlc.config.set_threads`, default: all cores). They run one after the
-other, never nested; see the README's Performance section.
+Threads: the bench applies :func:`nrmlc.config.set_threads` (default: all
+cores); ``--blas-threads`` overrides the BLAS count it sets, to compare
+policies. See the README's Performance section.
 
 Timings are medians over repeats after a warm-up call. The machine may be
 shared: the load average before and after the run is recorded, and wall and
@@ -61,7 +64,7 @@ TESTS_DIR = REPO_ROOT / "tests"
 #: Particle counts of the cost-vs-N table.
 PARTICLE_COUNTS = (100, 300, 600, 1200)
 #: Candidates the per-candidate references are timed on (then scaled to N).
-REFERENCE_SUBSET = {"regularized": 120, "plain": 60, "constrained": 24}
+REFERENCE_SUBSET = {"regularized": 120, "plain": 60, "constrained": 12}
 MODES = ("regularized", "constrained", "plain")
 
 
@@ -483,7 +486,7 @@ def _summary(result: dict) -> dict:
 
 
 def run(data: Path | None, out_dir: Path, n_threads: int | None, counts=PARTICLE_COUNTS, repeats: int = 15,
-        reference_repeats: int = 2, synthetic_frames: int = 120, real_frames: int | None = None,
+        reference_repeats: int = 2, synthetic_frames: int = 120, real_frames: int | None = 300,
         e2e_repeats: int = 3, startup: bool = True, reference_subset: dict | None = None,
         thread_study: bool = True, blas_threads: int | None = None) -> dict:
     from nrmlc.config import set_threads

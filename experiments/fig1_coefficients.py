@@ -64,9 +64,8 @@ def negative_counts(diagnostics: dict) -> np.ndarray:
     return counts
 
 
-def main(context=None, budget: Budget | None = None) -> dict:
-    context = get_context(context)
-    budget = budget_for(context, budget, SYNTHETIC_BUDGET, REAL_BUDGET)
+def _plan(context, budget: Budget):
+    """(sequence, seed, {setup name: params}, [RunSpec per setup])."""
     sequence = pick_sequence(context)
     seed = int((budget.seeds or context.seeds)[0])
     n_frames = None if budget.max_frames is None else min(int(budget.max_frames), len(sequence))
@@ -74,6 +73,18 @@ def main(context=None, budget: Budget | None = None) -> dict:
               "l2": tracker_params(budget, context, coding="regularized", lam=1.0, beta=0.1)}
     specs = [RunSpec(sequence=sequence, params=p, seed=seed, n_frames=n_frames, label=f"fig1 {name}")
              for name, p in setups.items()]
+    return sequence, seed, setups, specs
+
+
+def runs(context, budget: Budget | None = None) -> list[RunSpec]:
+    """The tracking runs :func:`main` needs (run_all schedules them in its shared grid)."""
+    return _plan(context, budget_for(context, budget, SYNTHETIC_BUDGET, REAL_BUDGET))[3]
+
+
+def main(context=None, budget: Budget | None = None) -> dict:
+    context = get_context(context)
+    budget = budget_for(context, budget, SYNTHETIC_BUDGET, REAL_BUDGET)
+    sequence, seed, setups, specs = _plan(context, budget)
     runs = dict(zip(setups, context.run(specs)))
 
     frame, why = representative_frame(runs["no_l2"].boxes, runs["l2"].boxes)

@@ -95,9 +95,7 @@ def flag_statistics(runs: list) -> dict:
     }
 
 
-def main(context=None, budget: Budget | None = None) -> dict:
-    context = get_context(context)
-    budget = budget_for(context, budget, SYNTHETIC_BUDGET, REAL_BUDGET)
+def _plan(context, budget: Budget) -> dict:
     params = tracker_params(budget, context)
     seeds = tuple(int(s) for s in (budget.seeds or context.seeds))
     sequence, is_paper = pick_sequence(context)
@@ -110,7 +108,22 @@ def main(context=None, budget: Budget | None = None) -> dict:
     synthetic_seeds = seeds if context.is_synthetic else seeds[:1]
     flag_specs = [RunSpec(sequence=s, params=params, seed=seed, n_frames=cap(s), label="occlusion flags")
                   for s in synthetic for seed in synthetic_seeds]
-    results = context.run([main_spec] + flag_specs)
+    return dict(params=params, seeds=seeds, sequence=sequence, is_paper=is_paper, synthetic=synthetic,
+                synthetic_seeds=synthetic_seeds, specs=[main_spec] + flag_specs)
+
+
+def runs(context, budget: Budget | None = None) -> list[RunSpec]:
+    """The tracking runs :func:`main` needs (run_all schedules them in its shared grid)."""
+    return _plan(context, budget_for(context, budget, SYNTHETIC_BUDGET, REAL_BUDGET))["specs"]
+
+
+def main(context=None, budget: Budget | None = None) -> dict:
+    context = get_context(context)
+    budget = budget_for(context, budget, SYNTHETIC_BUDGET, REAL_BUDGET)
+    plan = _plan(context, budget)
+    params, seeds, sequence, is_paper = plan["params"], plan["seeds"], plan["sequence"], plan["is_paper"]
+    synthetic, synthetic_seeds = plan["synthetic"], plan["synthetic_seeds"]
+    results = context.run(plan["specs"])
     run, flag_runs = results[0], results[1:]
     diagnostics = run.diagnostics
     n = len(run.boxes)

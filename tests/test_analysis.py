@@ -166,3 +166,11 @@ def test_fig_occlusion_main(tiny_context):
     assert stats["occluded_frames"] > 0 and stats["other_frames"] > 0
     assert 0 <= stats["flag_rate_occluded_frames"] <= 1
     assert data["at_frame"]["len_neg"] == data["at_frame"]["negative_templates_used"]
+
+
+def test_runs_match_main(tiny_context):
+    """run_all schedules ``runs(context)``; main must then find every run cached."""
+    for module in (fig1_coefficients, fig_occlusion):
+        module.main(tiny_context)  # cached when the tests above ran first
+        specs = module.runs(tiny_context)
+        assert specs and all(tiny_context.cache.has(s) for s in specs)

@@ -8,12 +8,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from nrmlc.errors import ParameterError
-from nrmlc.kernels.coding import (
-    PLAIN_JITTER,
-    combine_dictionaries,
-    encode_dictionaries,
-    scatter_codes,
-)
+from nrmlc.kernels.coding import combine_dictionaries, encode_dictionaries, scatter_codes
 from nrmlc.kernels.distance import candidate_template_dots, nearest_templates, template_gram
 from reference import (
     kkt_report,
@@ -261,10 +256,6 @@ def test_large_ridge_approaches_uniform(problem, constrained):
     weights, *_ = combine_dictionaries(gram, dots, cand_norms, neighbours, coefficients, SIZES,
                                        N_POSITIVE, 1e6, constrained, 1)
     np.testing.assert_allclose(weights, 1.0 / 3, rtol=0, atol=1e-5)
-
-
-def test_plain_jitter_is_documented_constant():
-    assert PLAIN_JITTER == 1e-10
 
 
 def test_nan_input_gives_nan_not_fallback(problem):

@@ -53,6 +53,22 @@ def test_squared_norms_match_reference(dtype):
         squared_norms(vectors.astype(np.int32))
 
 
+@pytest.mark.parametrize("n_candidates", [1, 127, 128, 300, 601])
+def test_dots_same_bits_whatever_the_thread_split(n_candidates):
+    # Row blocks go to different threads; every row must come out as in one product.
+    rng = np.random.default_rng(n_candidates)
+    candidates = rng.random((n_candidates, 256)).astype(np.float32)
+    templates = rng.random((70, 256)).astype(np.float32)
+    single = (candidates @ templates.T).astype(np.float64)
+    previous = numba.get_num_threads()
+    try:
+        for n_threads in range(1, numba.config.NUMBA_NUM_THREADS + 1):
+            numba.set_num_threads(n_threads)
+            assert candidate_template_dots(candidates, templates).tobytes() == single.tobytes()
+    finally:
+        numba.set_num_threads(previous)
+
+
 def test_template_gram_symmetric_and_exact():
     _, templates = make_problem(2)
     gram = template_gram(templates)

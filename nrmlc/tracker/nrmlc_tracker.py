@@ -185,7 +185,17 @@ class NRMLCTracker:
 
     # -- templates -------------------------------------------------------
     def _warp(self, frame: np.ndarray, states: np.ndarray) -> np.ndarray:
-        return warp_patches(frame, np.ascontiguousarray(state_to_affine(states)), self.params.patch_size)
+        states = np.asarray(states, dtype=np.float64)
+        if states.ndim == 2 and not states[:, 3].any() and not states[:, 5].any():
+            # rotation = skew = 0 (the default motion model): A = diag(scale, scale * aspect),
+            # the same bits as state_to_affine, without its 2x2 matrix products (0.25 ms a call).
+            affines = np.zeros((states.shape[0], 2, 3))
+            affines[:, 0, 0] = states[:, 2]
+            affines[:, 1, 1] = states[:, 2] * states[:, 4]
+            affines[:, :, 2] = states[:, :2]
+        else:
+            affines = np.ascontiguousarray(state_to_affine(states))
+        return warp_patches(frame, affines, self.params.patch_size)
 
     def _set_templates(self, positives: np.ndarray, negatives: np.ndarray) -> None:
         self.positive_templates = positives
