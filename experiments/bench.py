@@ -322,8 +322,7 @@ rng = np.random.default_rng(0)
 frame = rng.random((120, 160)).astype(np.float32)
 tracker = NRMLCTracker(seed=0)
 tracker.init(frame, (40.0, 30.0, 40.0, 32.0))
-for coding in ("regularized",):
-    tracker.update(frame)
+tracker.update(frame)
 done = time.perf_counter()
 print(json.dumps({"import_s": imported - start, "first_frame_s": done - imported, "total_s": done - start}))
 """
@@ -478,10 +477,11 @@ def _summary(result: dict) -> dict:
         if constrained:
             summary[f"{sequence}: constrained slower than regularized by"] = (
                 f"{row['fps_tracking'] / constrained['fps_tracking']:.2f}x")
-    speedups = [r for r in result["kernels"] if "speedup" in r and r["n_particles"] == 600]
+    speedups = [r for r in result["kernels"]
+                if "speedup" in r and r["n_particles"] == 600 and "numpy BLAS" not in r["kernel"]]
     if speedups:
         speedup, kernel = min((r["speedup"], r["kernel"]) for r in speedups)
-        summary["smallest kernel speed-up vs its reference at N=600"] = f"{speedup:.0f}x ({kernel})"
+        summary["smallest kernel speed-up vs its test-oracle reference at N=600"] = f"{speedup:.0f}x ({kernel})"
     return summary
 
 

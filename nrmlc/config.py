@@ -34,14 +34,18 @@ def data_root_from_env() -> str | None:
 
 
 def set_threads(n_threads: int | None) -> int:
-    """Pin numba, OpenBLAS and OpenCV to ``n_threads`` threads (None: all cores).
+    """Give numba and OpenCV ``n_threads`` threads (None: all cores), OpenBLAS one.
 
-    On a 2-core machine, numba's ``prange`` pool, OpenBLAS's pool and
-    OpenCV's pool each default to 2 threads; running them back to back is
-    fine, but nesting them (e.g. a BLAS call inside a process pool worker
-    that also runs numba) oversubscribes the cores. The tracker calls BLAS
-    and numba in sequence, never nested, so giving each the same count is
-    safe; the experiment runner gives each worker process one thread.
+    OpenMP (numba's pool) and OpenBLAS both busy-wait between calls by default,
+    and the tracker alternates between them many times a frame, so waiting
+    threads took the cores the other pool needed (measured: 35 fps before,
+    ~106 after, same machine). So OpenBLAS runs one thread, numba's OpenMP
+    workers wait passively (``OMP_WAIT_POLICY=PASSIVE``, set in
+    :mod:`nrmlc.kernels`), and the one large product per frame is split by rows
+    over numba's thread count (:func:`nrmlc.kernels.distance.candidate_template_dots`).
+    Each particle is computed by one thread and each product row by the same
+    single-threaded kernel, so results are bit-identical for any thread count.
+    The experiment runner gives each worker process one thread.
 
     Returns the thread count applied.
     """
@@ -57,6 +61,8 @@ def set_threads(n_threads: int | None) -> int:
         raise ParameterError(f"threads must be >= 1, got {n_threads}")
     n = min(n, numba.config.NUMBA_NUM_THREADS)
     numba.set_num_threads(n)
-    threadpool_limits(limits=n, user_api="blas")
+    # OpenBLAS workers busy-wait ~0.1 s after every call and OPENBLAS_THREAD_TIMEOUT is
+    # read only at load, so with a BLAS call every frame they never sleep.
+    threadpool_limits(limits=1, user_api="blas")
     cv2.setNumThreads(n)
     return n

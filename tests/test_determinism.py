@@ -53,10 +53,6 @@ def test_same_seed_is_bit_identical_across_runs_and_thread_counts(runs):
     assert result_1 == result_2
 
 
-@pytest.mark.xfail(strict=False, reason=(
-    "kernels.distance.template_gram uses OpenBLAS dgemm, whose rounding depends on the BLAS "
-    "thread count for 200+ templates: the Gram differs by ~1 ulp, and so do the codes and errors "
-    "of some frames (the boxes agree). Fix: compute the Gram with BLAS pinned to one thread."))
 def test_diagnostics_are_bit_identical_across_thread_counts(runs):
     with np.load(runs["seed0-t1"][1]) as one, np.load(runs["seed0-t2"][1]) as two:
         assert one.files == two.files

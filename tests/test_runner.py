@@ -145,6 +145,7 @@ def test_pool_failure_keeps_the_finished_runs(tmp_path, monkeypatch):
     """One run raises: the others that finish are still stored, and the error is raised."""
     def execute(spec, threads):
         if spec.label == "0/1":
+            time.sleep(0.02)  # let every worker thread pick up its run before the failure arrives
             raise RuntimeError("boom")
         time.sleep(0.05)
         return fake_arrays(spec)
