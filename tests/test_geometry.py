@@ -81,3 +81,17 @@ def test_reflections_and_degenerate_matrices_are_rejected(bad):
 def test_non_positive_box_size_is_rejected():
     with pytest.raises(ParameterError, match="positive"):
         box_to_state(np.array([1.0, 1.0, 0.0, 5.0]))
+
+
+def test_axis_aligned_fast_path_matches_the_general_product():
+    rng = np.random.default_rng(0)
+    states = np.zeros((500, 6))
+    states[:, :2] = rng.uniform(-50, 300, (500, 2))
+    states[:, 2] = rng.uniform(0.1, 5, 500)
+    states[:, 4] = rng.uniform(0.2, 5, 500)
+    fast = state_to_affine(states)
+    # the general path, element by element: scale * R(0) R(0) diag(1, aspect) R(0)
+    general = np.stack([state_to_affine(np.append(s[:5], 1e-300)) for s in states])
+    np.testing.assert_array_equal(fast[..., :2][:, [0, 1], [0, 1]], general[..., :2][:, [0, 1], [0, 1]])
+    np.testing.assert_array_equal(fast[..., 2], general[..., 2])
+    assert np.all(fast[:, 0, 1] == 0) and np.all(fast[:, 1, 0] == 0)

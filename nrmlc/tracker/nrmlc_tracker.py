@@ -23,10 +23,10 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-from nrmlc.errors import DataError, ParameterError
+from nrmlc.errors import ParameterError
 from nrmlc.geometry import box_to_state, state_to_affine, state_to_box
 from nrmlc.kernels.coding import combine_dictionaries, encode_dictionaries
-from nrmlc.kernels.distance import candidate_template_dots, nearest_templates, template_gram
+from nrmlc.kernels.distance import candidate_template_dots, nearest_templates, squared_norms, template_gram
 from nrmlc.kernels.warp import warp_patches
 from nrmlc.tracker.params import TrackerParams
 from nrmlc.tracker.templates import negative_states, positive_states
@@ -185,17 +185,7 @@ class NRMLCTracker:
 
     # -- templates -------------------------------------------------------
     def _warp(self, frame: np.ndarray, states: np.ndarray) -> np.ndarray:
-        states = np.asarray(states, dtype=np.float64)
-        if states.ndim == 2 and not states[:, 3].any() and not states[:, 5].any():
-            # rotation = skew = 0 (the default motion model): A = diag(scale, scale * aspect),
-            # the same bits as state_to_affine, without its 2x2 matrix products (0.25 ms a call).
-            affines = np.zeros((states.shape[0], 2, 3))
-            affines[:, 0, 0] = states[:, 2]
-            affines[:, 1, 1] = states[:, 2] * states[:, 4]
-            affines[:, :, 2] = states[:, :2]
-        else:
-            affines = np.ascontiguousarray(state_to_affine(states))
-        return warp_patches(frame, affines, self.params.patch_size)
+        return warp_patches(frame, np.ascontiguousarray(state_to_affine(states)), self.params.patch_size)
 
     def _set_templates(self, positives: np.ndarray, negatives: np.ndarray) -> None:
         self.positive_templates = positives
@@ -265,7 +255,6 @@ class NRMLCTracker:
         constrained = p.coding == "constrained"
         sizes = np.asarray(p.dictionary_sizes, dtype=np.int64)
         dots = candidate_template_dots(candidates, self.templates)
-        from nrmlc.kernels.distance import squared_norms  # lead: may move to the module imports
 
         sq_norms = squared_norms(candidates)  # einsum with dtype= took 0.9 ms here, this 0.1 ms
         neighbours, _ = nearest_templates(dots, sq_norms, self.template_sq_norms, p.k_max)

@@ -3,7 +3,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 from nrmlc.config import PATCH_SIZE
 from nrmlc.errors import ParameterError
