@@ -48,7 +48,7 @@ SCRIPTS = (
 )
 
 #: Rough tracking speed for the time estimate (frames per second per worker).
-ESTIMATE_FPS_PER_WORKER = 30.0
+ESTIMATE_FPS_PER_WORKER = 80.0  # measured: ~85 fps per single-threaded worker (figures/bench.md)
 #: Rough speed of OpenCV's MIL (frames per second per worker).
 ESTIMATE_PEER_FPS = 15.0
 
