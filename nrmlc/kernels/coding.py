@@ -67,6 +67,7 @@ from numba import njit, prange
 
 from nrmlc.config import NUMBA_FLAGS, PARALLEL_FLAGS
 from nrmlc.errors import ParameterError
+from nrmlc.kernels.checks import check_array
 
 __all__ = ["PLAIN_JITTER", "encode_dictionaries", "combine_dictionaries", "scatter_codes"]
 
@@ -515,17 +516,6 @@ def _combine_dictionaries(
 # Checked public wrappers
 # ---------------------------------------------------------------------------
 
-def _check_array(name, array, dtype, ndim):
-    if not isinstance(array, np.ndarray):
-        raise ParameterError(f"{name} must be a numpy array, got {type(array).__name__}")
-    if array.dtype != dtype:
-        raise ParameterError(f"{name} must have dtype {np.dtype(dtype)}, got {array.dtype}")
-    if array.ndim != ndim:
-        raise ParameterError(f"{name} must be {ndim}-D, got shape {array.shape}")
-    if not array.flags.c_contiguous:
-        raise ParameterError(f"{name} must be C-contiguous")
-
-
 def _check_int(name, value, minimum, maximum=None):
     if isinstance(value, (bool, np.bool_)) or not isinstance(value, numbers.Integral):
         raise ParameterError(f"{name} must be an integer, got {value!r}")
@@ -553,11 +543,11 @@ def _check_flag(name, value):
 
 def _check_common(template_gram, dots, candidate_sq_norms, neighbour_indices, dictionary_sizes):
     """Validate the inputs shared by both kernels; return (n_candidates, n_templates, k_max)."""
-    _check_array("template_gram", template_gram, np.float64, 2)
-    _check_array("dots", dots, np.float64, 2)
-    _check_array("candidate_sq_norms", candidate_sq_norms, np.float64, 1)
-    _check_array("neighbour_indices", neighbour_indices, np.int64, 2)
-    _check_array("dictionary_sizes", dictionary_sizes, np.int64, 1)
+    check_array("template_gram", template_gram, np.float64, 2)
+    check_array("dots", dots, np.float64, 2)
+    check_array("candidate_sq_norms", candidate_sq_norms, np.float64, 1)
+    check_array("neighbour_indices", neighbour_indices, np.int64, 2)
+    check_array("dictionary_sizes", dictionary_sizes, np.int64, 1)
     n_candidates, n_templates = dots.shape
     if template_gram.shape != (n_templates, n_templates):
         raise ParameterError(
@@ -704,7 +694,7 @@ def combine_dictionaries(
         template_gram, dots, candidate_sq_norms, neighbour_indices, dictionary_sizes
     )
     n_dictionaries = dictionary_sizes.shape[0]
-    _check_array("coefficients", coefficients, np.float64, 3)
+    check_array("coefficients", coefficients, np.float64, 3)
     if coefficients.shape != (n_candidates, n_dictionaries, k_max):
         raise ParameterError(
             f"coefficients must have shape ({n_candidates}, {n_dictionaries}, {k_max}), "
@@ -753,8 +743,8 @@ def scatter_codes(codes: np.ndarray, neighbour_indices: np.ndarray, n_templates:
         The uniform coefficient vectors ``d_i``; templates outside the support
         are 0, and repeated support indices are summed.
     """
-    _check_array("codes", codes, np.float64, 2)
-    _check_array("neighbour_indices", neighbour_indices, np.int64, 2)
+    check_array("codes", codes, np.float64, 2)
+    check_array("neighbour_indices", neighbour_indices, np.int64, 2)
     if neighbour_indices.shape != codes.shape:
         raise ParameterError(
             f"neighbour_indices shape {neighbour_indices.shape} differs from codes shape {codes.shape}"

@@ -40,23 +40,11 @@ from numba import njit, prange
 
 from nrmlc.config import PARALLEL_FLAGS
 from nrmlc.errors import ParameterError
+from nrmlc.kernels.checks import check_array
 
 __all__ = ["candidate_template_dots", "squared_norms", "template_gram", "nearest_templates"]
 
 _FLOAT_DTYPES = (np.dtype(np.float32), np.dtype(np.float64))
-
-
-def _check_array(name: str, array, dtypes, ndim: int) -> None:
-    """Raise ParameterError unless ``array`` is a C-contiguous ndarray of a given dtype/ndim."""
-    if not isinstance(array, np.ndarray):
-        raise ParameterError(f"{name} must be a numpy array, got {type(array).__name__}")
-    if array.dtype not in dtypes:
-        allowed = " or ".join(str(d) for d in dtypes)
-        raise ParameterError(f"{name} must have dtype {allowed}, got {array.dtype}")
-    if array.ndim != ndim:
-        raise ParameterError(f"{name} must be {ndim}-D, got shape {array.shape}")
-    if not array.flags.c_contiguous:
-        raise ParameterError(f"{name} must be C-contiguous")
 
 
 #: Below this many candidates per thread the product runs in the calling thread.
@@ -150,8 +138,8 @@ def candidate_template_dots(candidates: np.ndarray, templates: np.ndarray) -> np
         was 2.3x faster than ``dgemm`` and 4.5x faster than a numba kernel
         here (see the module docstring for timings and the precision cost).
     """
-    _check_array("candidates", candidates, _FLOAT_DTYPES, 2)
-    _check_array("templates", templates, _FLOAT_DTYPES, 2)
+    check_array("candidates", candidates, _FLOAT_DTYPES, 2)
+    check_array("templates", templates, _FLOAT_DTYPES, 2)
     if templates.dtype != candidates.dtype:
         raise ParameterError(
             f"templates dtype {templates.dtype} differs from candidates dtype {candidates.dtype}"
@@ -193,7 +181,7 @@ def squared_norms(vectors: np.ndarray) -> np.ndarray:
     -------
     sq_norms : ndarray, shape (n_vectors,), float64
     """
-    _check_array("vectors", vectors, _FLOAT_DTYPES, 2)
+    check_array("vectors", vectors, _FLOAT_DTYPES, 2)
     out = np.empty(vectors.shape[0], dtype=np.float64)
     _squared_norms(vectors, out)
     return out
@@ -215,7 +203,7 @@ def template_gram(templates: np.ndarray) -> np.ndarray:
     gram : ndarray, shape (n_templates, n_templates), float64
         ``gram[s, t] = templates[s] . templates[t]``, exactly symmetric.
     """
-    _check_array("templates", templates, _FLOAT_DTYPES, 2)
+    check_array("templates", templates, _FLOAT_DTYPES, 2)
     as_double = templates.astype(np.float64, copy=False)
     with _one_blas_thread():
         gram = as_double @ as_double.T
@@ -294,9 +282,9 @@ def nearest_templates(
     sq_distances : ndarray, shape (n_candidates, k), float64
         The matching squared distances, ascending.
     """
-    _check_array("dots", dots, (np.dtype(np.float64),), 2)
-    _check_array("candidate_sq_norms", candidate_sq_norms, (np.dtype(np.float64),), 1)
-    _check_array("template_sq_norms", template_sq_norms, (np.dtype(np.float64),), 1)
+    check_array("dots", dots, (np.dtype(np.float64),), 2)
+    check_array("candidate_sq_norms", candidate_sq_norms, (np.dtype(np.float64),), 1)
+    check_array("template_sq_norms", template_sq_norms, (np.dtype(np.float64),), 1)
     n_candidates, n_templates = dots.shape
     if candidate_sq_norms.shape[0] != n_candidates:
         raise ParameterError(

@@ -25,6 +25,7 @@ from numba import njit, prange
 
 from nrmlc.config import PARALLEL_FLAGS, PATCH_SIZE
 from nrmlc.errors import ParameterError
+from nrmlc.kernels.checks import check_array
 
 
 @njit(**PARALLEL_FLAGS)
@@ -139,16 +140,12 @@ def warp_patches(frame: np.ndarray, affines: np.ndarray, patch_size: int = PATCH
     patches : (n_particles, patch_size**2) float32
         Row-major patches, each of unit l2 norm.
     """
-    if not isinstance(frame, np.ndarray) or frame.dtype != np.float32 or frame.ndim != 2:
-        raise ParameterError("frame must be a 2-D float32 array")
+    check_array("frame", frame, np.float32, 2)
     if frame.shape[0] < 1 or frame.shape[1] < 1:
         raise ParameterError(f"frame must be non-empty, got shape {frame.shape}")
-    if not frame.flags.c_contiguous:
-        raise ParameterError("frame must be C-contiguous (use np.ascontiguousarray)")
-    if not isinstance(affines, np.ndarray) or affines.dtype != np.float64 or affines.ndim != 3 or affines.shape[1:] != (2, 3):
-        raise ParameterError("affines must be a float64 array of shape (n_particles, 2, 3)")
-    if not affines.flags.c_contiguous:
-        raise ParameterError("affines must be C-contiguous")
+    check_array("affines", affines, np.float64, 3)
+    if affines.shape[1:] != (2, 3):
+        raise ParameterError(f"affines must have shape (n_particles, 2, 3), got {affines.shape}")
     if not np.all(np.isfinite(affines)):
         raise ParameterError("affines contain NaN or infinite values")
     if not np.all(np.isfinite(frame)):
