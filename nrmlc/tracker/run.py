@@ -1,7 +1,6 @@
 """Running the tracker over a whole sequence, with per-frame diagnostics."""
 from __future__ import annotations
 
-import os
 import time
 from dataclasses import dataclass, field, fields
 
