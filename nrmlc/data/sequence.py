@@ -32,6 +32,7 @@ import cv2
 import numpy as np
 
 from nrmlc.data.boxes import read_box_file
+from nrmlc.data.image import to_gray_float32
 from nrmlc.data.sparsepack import (
     DATAINFO_NAME,
     find_groundtruth_mat,
@@ -226,14 +227,7 @@ class Sequence:
         uint8 is divided by 255, uint16 by 65535; colour (BGR/BGRA) is
         converted with OpenCV's luma weights, in float so no precision is lost.
         """
-        image = self.raw_frame(index)
-        scale = 1.0 / 255.0 if image.dtype == np.uint8 else 1.0 / 65535.0
-        gray = image.astype(np.float32) * np.float32(scale)
-        if gray.ndim == 3:
-            code = cv2.COLOR_BGR2GRAY if gray.shape[2] == 3 else cv2.COLOR_BGRA2GRAY
-            gray = cv2.cvtColor(gray, code)
-            np.clip(gray, 0.0, 1.0, out=gray)  # float rounding of the weights can overshoot 1 slightly
-        return gray
+        return to_gray_float32(self.raw_frame(index))
 
     def color_frame(self, index: int) -> np.ndarray:
         """Frame ``index`` as (H, W, 3) uint8 BGR (for drawing and video output)."""

@@ -20,9 +20,9 @@ from __future__ import annotations
 import warnings
 from dataclasses import dataclass
 
-import cv2
 import numpy as np
 
+from nrmlc.data.image import to_gray_float32
 from nrmlc.errors import ParameterError
 from nrmlc.geometry import box_to_state, state_to_affine, state_to_box
 from nrmlc.kernels.coding import combine_dictionaries, encode_dictionaries
@@ -44,26 +44,15 @@ def as_gray_frame(image: np.ndarray) -> np.ndarray:
     """
     if not isinstance(image, np.ndarray):
         raise ParameterError(f"frame must be a numpy array, got {type(image).__name__}")
-    if image.ndim == 3 and image.shape[2] in (1, 2):  # gray, or gray + alpha (the alpha is of no use)
-        image = image[:, :, 0]
-    if image.ndim == 3 and image.shape[2] in (3, 4):
-        code = cv2.COLOR_BGR2GRAY if image.shape[2] == 3 else cv2.COLOR_BGRA2GRAY
-        if image.dtype not in (np.uint8, np.uint16, np.float32):
-            image = image.astype(np.float32)
-        image = cv2.cvtColor(image, code)
-    if image.ndim != 2 or image.shape[0] < 2 or image.shape[1] < 2:
+    channels = image.shape[2] if image.ndim == 3 else 1
+    if image.ndim not in (2, 3) or channels not in (1, 2, 3, 4) or image.shape[0] < 2 or image.shape[1] < 2:
         raise ParameterError(f"frame must be a gray or BGR(A) image of at least 2x2 pixels, got shape {image.shape}")
-    if image.dtype == np.uint8:
-        frame = image.astype(np.float32) / 255.0
-    elif image.dtype == np.uint16:
-        frame = image.astype(np.float32) / 65535.0
-    elif np.issubdtype(image.dtype, np.number) and not np.issubdtype(image.dtype, np.complexfloating):
-        frame = image.astype(np.float32)
-    else:
+    if not np.issubdtype(image.dtype, np.number) or np.issubdtype(image.dtype, np.complexfloating):
         raise ParameterError(f"frame has unsupported dtype {image.dtype}")
+    frame = to_gray_float32(image)
     if not np.all(np.isfinite(frame)):
         raise ParameterError("frame contains NaN or infinite values")
-    return np.ascontiguousarray(frame)
+    return frame
 
 
 def clip_initial_box(box, frame_shape) -> np.ndarray:
