@@ -45,6 +45,7 @@ SCRIPTS = (
     ("experiments.fig4_lambda_sweep", True),
     ("experiments.fig_occlusion", False),
     ("experiments.ablations", True),
+    ("experiments.ablation_per_sequence_motion", True),
 )
 
 #: Rough tracking speed for the time estimate (frames per second per worker).

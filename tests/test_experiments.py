@@ -16,9 +16,11 @@ from experiments import paper_numbers, peers, run_all
 from experiments.common import context_from_args, score
 from nrmlc.data import open_sequence
 
-MY_SCRIPTS = ("table1_table2_accuracy", "fig3_qualitative", "fig4_lambda_sweep", "ablations")
+MY_SCRIPTS = ("table1_table2_accuracy", "fig3_qualitative", "fig4_lambda_sweep", "ablations",
+              "ablation_per_sequence_motion")
 OUTPUTS = {"table1_table2_accuracy": (".png", ".csv", ".json"), "fig3_qualitative": (".png", ".json"),
-           "fig4_lambda_sweep": (".png", ".csv", ".json"), "ablations": (".png", ".csv", ".json")}
+           "fig4_lambda_sweep": (".png", ".csv", ".json"), "ablations": (".png", ".csv", ".json"),
+           "ablation_per_sequence_motion": (".png", ".csv", ".json")}
 
 
 def tiny_args(tmp, figures="figures"):
@@ -92,6 +94,36 @@ def test_rerun_recomputes_nothing(grid):
     assert run_all.main(tiny_args(tmp, figures="figures_again")) == 0
     assert cache_state(tmp / "cache") == before
     assert (tmp / "figures_again" / "REPORT.md").is_file()
+
+
+def test_per_sequence_motion_conversion():
+    """IVT's additive affsig -> nrmlc's relative sigmas, checked by hand for Car4 (lineage box 200x150)."""
+    from experiments.ablation_per_sequence_motion import converted_sigmas
+
+    sigmas = converted_sigmas((4, 4, 0.02, 0.015, 0.005, 0.001), (200.0, 150.0), (70, 51, 107, 87), 32)
+    assert sigmas == pytest.approx((4 * 107 / 200, 4 * 107 / 200, 0.02 / 6.25, 0.015, 0.005 / 0.75, 0.001))
+
+
+def test_per_sequence_motion_runs_and_shares_the_table_runs(grid, monkeypatch):
+    """With a classic entry for the synthetic sequence, the default column is Table II's own runs
+    (from the cache) and the per-sequence column is a new run with the converted sigmas."""
+    from experiments import ablation_per_sequence_motion as script
+
+    tmp, _, _ = grid
+    monkeypatch.delenv("NRMLC_DATA", raising=False)
+    monkeypatch.setitem(script.CLASSIC_MOTION, "synth-01", {"affsig": (2.0, 2.0, 0.004, 0.0, 0.0, 0.0),
+                                                            "box": (64.0, 48.0)})
+    context = context_from_args(tiny_args(tmp, figures="figures_motion")[:-2])
+    result = script.main(context)
+    data = json.loads((tmp / "figures_motion" / f"{script.STEM}.json").read_text())
+    (row,) = data["rows"]
+    table = json.loads((tmp / "figures" / "table1_table2_accuracy.json").read_text())
+    assert row["overlap_default"] == pytest.approx(table["cells"]["synth-01"]["Ours"]["overlap"])
+    width = context.sequence("synth-01").init_box[2]
+    assert row["motion_sigmas_classic"] == pytest.approx([2.0 * width / 64, 2.0 * width / 64, 0.004 / 2, 0, 0, 0],
+                                                         rel=1e-3)
+    assert 0 <= row["overlap_classic"] <= 1 and row["overlap_classic"] != row["overlap_default"]
+    assert "| synth-01 |" in result["markdown"]
 
 
 def test_missing_and_failing_scripts(tmp_path, monkeypatch):
