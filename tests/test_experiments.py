@@ -65,8 +65,8 @@ def test_run_all_writes_every_output(grid):
     for stem in OUTPUTS:
         assert f"]({stem}.png)" in report
     assert "Code version" in report and "synthetic suite" in report
-    # 15 distinct tracker configurations on one sequence, one seed; the shared ones ran once.
-    assert len(state) == 15 + 1  # plus the OpenCV MIL run
+    # 18 distinct tracker configurations on one sequence, one seed; the shared ones ran once.
+    assert len(state) == 18 + 1  # plus the OpenCV MIL run
     assert len(list((tmp / "cache" / "peers").glob("*.npz"))) == 1
 
 
