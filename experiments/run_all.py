@@ -46,6 +46,7 @@ SCRIPTS = (
     ("experiments.fig_occlusion", False),
     ("experiments.ablations", True),
     ("experiments.ablation_per_sequence_motion", True),
+    ("experiments.ablation_oracle_recentring", True),
 )
 
 #: Rough tracking speed for the time estimate (frames per second per worker).

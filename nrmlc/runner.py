@@ -82,6 +82,9 @@ class RunSpec:
         Track only the first frames (None: all).
     label : str
         Free text for progress bars and reports (not part of the key).
+    recentre_every : int
+        Diagnostics: 0 (an ordinary run) or move the estimate to the ground
+        truth after every this many frames (see :func:`track_sequence`).
     """
 
     sequence: object
@@ -89,11 +92,15 @@ class RunSpec:
     seed: int = 0
     n_frames: int | None = None
     label: str = ""
+    recentre_every: int = 0
 
     def description(self, version: str) -> dict:
-        return {"sequence": sequence_identity(self.sequence), "sequence_name": self.sequence.name,
-                "params": self.params.as_dict(), "seed": self.seed, "n_frames": self.n_frames,
-                "code_version": version}
+        description = {"sequence": sequence_identity(self.sequence), "sequence_name": self.sequence.name,
+                       "params": self.params.as_dict(), "seed": self.seed, "n_frames": self.n_frames,
+                       "code_version": version}
+        if self.recentre_every:  # only then, so that ordinary runs keep their keys
+            description["recentre_every"] = int(self.recentre_every)
+        return description
 
     def key(self, version: str) -> str:
         text = json.dumps(self.description(version), sort_keys=True, default=str)
@@ -105,7 +112,9 @@ def _execute(spec: RunSpec, threads: int | None) -> dict:
         from nrmlc.config import set_threads
 
         set_threads(threads)
-    result = track_sequence(spec.sequence, spec.params, seed=spec.seed, n_frames=spec.n_frames)
+    truth = spec.sequence.groundtruth if spec.recentre_every else None
+    result = track_sequence(spec.sequence, spec.params, seed=spec.seed, n_frames=spec.n_frames,
+                            recentre_boxes=truth, recentre_every=spec.recentre_every)
     return result.to_arrays()
 
 

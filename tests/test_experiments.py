@@ -17,10 +17,11 @@ from experiments.common import context_from_args, score
 from nrmlc.data import open_sequence
 
 MY_SCRIPTS = ("table1_table2_accuracy", "fig3_qualitative", "fig4_lambda_sweep", "ablations",
-              "ablation_per_sequence_motion")
+              "ablation_per_sequence_motion", "ablation_oracle_recentring")
 OUTPUTS = {"table1_table2_accuracy": (".png", ".csv", ".json"), "fig3_qualitative": (".png", ".json"),
            "fig4_lambda_sweep": (".png", ".csv", ".json"), "ablations": (".png", ".csv", ".json"),
-           "ablation_per_sequence_motion": (".png", ".csv", ".json")}
+           "ablation_per_sequence_motion": (".png", ".csv", ".json"),
+           "ablation_oracle_recentring": (".png", ".csv", ".json")}
 
 
 def tiny_args(tmp, figures="figures"):
@@ -65,8 +66,9 @@ def test_run_all_writes_every_output(grid):
     for stem in OUTPUTS:
         assert f"]({stem}.png)" in report
     assert "Code version" in report and "synthetic suite" in report
-    # 18 distinct tracker configurations on one sequence, one seed; the shared ones ran once.
-    assert len(state) == 18 + 1  # plus the OpenCV MIL run
+    # 18 distinct tracker configurations on one sequence, one seed, and 3 re-centred runs of the
+    # default one; the shared ones ran once.
+    assert len(state) == 18 + 3 + 1  # plus the OpenCV MIL run
     assert len(list((tmp / "cache" / "peers").glob("*.npz"))) == 1
 
 
@@ -124,6 +126,17 @@ def test_per_sequence_motion_runs_and_shares_the_table_runs(grid, monkeypatch):
                                                          rel=1e-3)
     assert 0 <= row["overlap_classic"] <= 1 and row["overlap_classic"] != row["overlap_default"]
     assert "| synth-01 |" in result["markdown"]
+
+
+def test_recentring_free_column_is_the_table_run(grid):
+    """The free column reads Table II's own default run from the cache; the re-centred ones are new runs."""
+    tmp, _, _ = grid
+    data = json.loads((tmp / "figures" / "ablation_oracle_recentring.json").read_text())
+    (row,) = data["rows"]
+    table = json.loads((tmp / "figures" / "table1_table2_accuracy.json").read_text())
+    assert row["free"] == pytest.approx(table["cells"]["synth-01"]["Ours"]["overlap"])
+    assert all(0 <= row[f"R = {period}"] <= 1 for period in (1, 10, 50))
+    assert data["averages"]["other sequences"]["free"] == pytest.approx(row["free"])
 
 
 def test_missing_and_failing_scripts(tmp_path, monkeypatch):

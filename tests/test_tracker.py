@@ -88,6 +88,38 @@ def test_update_before_init_is_an_error():
         NRMLCTracker().update(np.zeros((20, 20), np.float32))
 
 
+def test_recentring_moves_the_estimate_every_period(sequence):
+    """With no motion noise every particle is the current state, so each frame's box is where the
+    estimate was put: the initial box until the first re-centring (after frame 3), then the given box."""
+    params = TrackerParams(n_particles=5, motion_sigmas=(0, 0, 0, 0, 0, 0))
+    target = np.array([30.0, 20.0, 24.0, 18.0])
+    result = track_sequence(sequence, params, seed=0, n_frames=8, recentre_boxes=np.tile(target, (8, 1)),
+                            recentre_every=3)
+    np.testing.assert_allclose(result.boxes[1:4], np.tile(sequence.init_box, (3, 1)), atol=1e-9)
+    np.testing.assert_allclose(result.boxes[4:8], np.tile(target, (4, 1)), atol=1e-9)
+    plain = track_sequence(sequence, TrackerParams(**FAST), seed=0, n_frames=10, recentre_every=0)
+    assert np.array_equal(plain.boxes, track_sequence(sequence, TrackerParams(**FAST), seed=0, n_frames=10).boxes)
+
+
+@pytest.mark.parametrize("kwargs, match", [
+    (dict(recentre_every=-1), "recentre_every"),
+    (dict(recentre_every=2), "recentre_boxes"),
+])
+def test_recentring_arguments_are_checked(sequence, kwargs, match):
+    with pytest.raises(ParameterError, match=match):
+        track_sequence(sequence, TrackerParams(**FAST), seed=0, n_frames=3, **kwargs)
+
+
+def test_move_to_checks_its_box(sequence):
+    tracker = NRMLCTracker(seed=0, **FAST)
+    with pytest.raises(ParameterError, match="init"):
+        tracker.move_to((1, 1, 10, 10))
+    tracker.init(sequence.frame(0), sequence.init_box)
+    for box in ((1, 1, 0, 10), (1, np.nan, 10, 10), (1, 2, 3)):
+        with pytest.raises(ParameterError, match="box"):
+            tracker.move_to(box)
+
+
 # -- the paper's problems (see README, "Deviations from the paper") --------------
 
 def test_problem1_literal_confidence_prefers_the_worst_candidate(coded_frame):

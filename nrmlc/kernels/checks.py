@@ -32,3 +32,20 @@ def check_array(name: str, array, dtypes, ndim: int) -> None:
         raise ParameterError(f"{name} must be {ndim}-D, got shape {array.shape}")
     if not array.flags.c_contiguous:
         raise ParameterError(f"{name} must be C-contiguous")
+
+
+def check_length(name: str, array: np.ndarray, expected: int, reference: str) -> None:
+    """Raise ParameterError unless ``array`` has ``expected`` rows (entries, if 1-D).
+
+    Parameters
+    ----------
+    name : str
+        Argument name used in the message.
+    array : ndarray
+    expected : int
+    reference : str
+        What fixes ``expected``, e.g. ``"dots has 600 rows"``.
+    """
+    if array.shape[0] != expected:
+        unit = "entries" if array.ndim == 1 else "rows"
+        raise ParameterError(f"{name} has {array.shape[0]} {unit}, {reference}")

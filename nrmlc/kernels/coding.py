@@ -67,7 +67,7 @@ from numba import njit, prange
 
 from nrmlc.config import NUMBA_FLAGS, PARALLEL_FLAGS
 from nrmlc.errors import ParameterError
-from nrmlc.kernels.checks import check_array
+from nrmlc.kernels.checks import check_array, check_length
 
 __all__ = ["PLAIN_JITTER", "encode_dictionaries", "combine_dictionaries", "scatter_codes"]
 
@@ -553,14 +553,8 @@ def _check_common(template_gram, dots, candidate_sq_norms, neighbour_indices, di
         raise ParameterError(
             f"template_gram must have shape ({n_templates}, {n_templates}), got {template_gram.shape}"
         )
-    if candidate_sq_norms.shape[0] != n_candidates:
-        raise ParameterError(
-            f"candidate_sq_norms has {candidate_sq_norms.shape[0]} entries, dots has {n_candidates} rows"
-        )
-    if neighbour_indices.shape[0] != n_candidates:
-        raise ParameterError(
-            f"neighbour_indices has {neighbour_indices.shape[0]} rows, dots has {n_candidates}"
-        )
+    check_length("candidate_sq_norms", candidate_sq_norms, n_candidates, f"dots has {n_candidates} rows")
+    check_length("neighbour_indices", neighbour_indices, n_candidates, f"dots has {n_candidates} rows")
     k_max = neighbour_indices.shape[1]
     if k_max < 1:
         raise ParameterError("neighbour_indices must have at least one column")

@@ -40,7 +40,7 @@ from numba import njit, prange
 
 from nrmlc.config import PARALLEL_FLAGS
 from nrmlc.errors import ParameterError
-from nrmlc.kernels.checks import check_array
+from nrmlc.kernels.checks import check_array, check_length
 
 __all__ = ["candidate_template_dots", "squared_norms", "template_gram", "nearest_templates"]
 
@@ -286,14 +286,8 @@ def nearest_templates(
     check_array("candidate_sq_norms", candidate_sq_norms, (np.dtype(np.float64),), 1)
     check_array("template_sq_norms", template_sq_norms, (np.dtype(np.float64),), 1)
     n_candidates, n_templates = dots.shape
-    if candidate_sq_norms.shape[0] != n_candidates:
-        raise ParameterError(
-            f"candidate_sq_norms has {candidate_sq_norms.shape[0]} entries, dots has {n_candidates} rows"
-        )
-    if template_sq_norms.shape[0] != n_templates:
-        raise ParameterError(
-            f"template_sq_norms has {template_sq_norms.shape[0]} entries, dots has {n_templates} columns"
-        )
+    check_length("candidate_sq_norms", candidate_sq_norms, n_candidates, f"dots has {n_candidates} rows")
+    check_length("template_sq_norms", template_sq_norms, n_templates, f"dots has {n_templates} columns")
     if isinstance(k, (bool, np.bool_)) or not isinstance(k, (int, np.integer)):
         raise ParameterError(f"k must be an integer, got {k!r}")
     k = int(k)

@@ -213,6 +213,19 @@ class NRMLCTracker:
             self._update_templates(frame, result)
         return result.box
 
+    def move_to(self, box) -> None:
+        """Move the estimate to ``box`` (1-based x, y, w, h), keeping the templates.
+
+        For diagnostics such as re-centring on the ground truth: the next
+        ``update`` draws its particles around this box.
+        """
+        if self.state is None:
+            raise ParameterError("call init(frame, box) before move_to(box)")
+        box = np.asarray(box, dtype=np.float64).reshape(-1)
+        if box.shape != (4,) or not np.all(np.isfinite(box)) or box[2] <= 0 or box[3] <= 0:
+            raise ParameterError(f"box must be 4 finite numbers (x, y, w, h) with w, h > 0, got {box.tolist()}")
+        self.state = box_to_state(box, self.params.patch_size)
+
     # -- one frame -------------------------------------------------------
     def sample_particles(self) -> np.ndarray:
         """(n_particles, 6) states drawn around the current estimate."""

@@ -6,6 +6,7 @@ from dataclasses import dataclass, field, fields
 
 import numpy as np
 
+from nrmlc.errors import ParameterError
 from nrmlc.tracker.nrmlc_tracker import FrameResult, NRMLCTracker
 from nrmlc.tracker.params import TrackerParams
 
@@ -64,7 +65,8 @@ def _stack(results: list[FrameResult], name: str) -> np.ndarray:
 
 
 def track_sequence(sequence, params: TrackerParams | None = None, seed: int = 0, n_frames: int | None = None,
-                   init_box=None, progress: bool = False, on_frame=None) -> TrackResult:
+                   init_box=None, progress: bool = False, on_frame=None, recentre_boxes=None,
+                   recentre_every: int = 0) -> TrackResult:
     """Track ``sequence`` from its first frame.
 
     Parameters
@@ -80,12 +82,26 @@ def track_sequence(sequence, params: TrackerParams | None = None, seed: int = 0,
         Show a tqdm progress bar on stderr.
     on_frame : callable(frame_index, tracker, frame), optional
         Called after every frame (e.g. to draw a video or collect statistics).
+    recentre_boxes : (n_frames, 4) array, optional
+        Diagnostics only. After every ``recentre_every``-th frame whose row here
+        is finite, the estimate moves to that box (:meth:`NRMLCTracker.move_to`);
+        the frame's recorded box is still the tracker's own. With the ground
+        truth this measures localisation from a perfect start.
+    recentre_every : int
+        0 (never) or the re-centring period in frames.
 
     Returns
     -------
     TrackResult
     """
     tracker = NRMLCTracker(seed=seed, params=params)
+    if isinstance(recentre_every, bool) or not isinstance(recentre_every, (int, np.integer)) or recentre_every < 0:
+        raise ParameterError(f"recentre_every must be an integer >= 0, got {recentre_every!r}")
+    if recentre_every and recentre_boxes is None:
+        raise ParameterError("recentre_every needs recentre_boxes")
+    if recentre_every:
+        recentre_boxes = np.asarray(recentre_boxes, dtype=np.float64)
+        usable = np.isfinite(recentre_boxes).all(axis=1) & (recentre_boxes[:, 2] > 0) & (recentre_boxes[:, 3] > 0)
     total = len(sequence) if n_frames is None else max(1, min(int(n_frames), len(sequence)))
     box = sequence.init_box if init_box is None else init_box
     frames = iter(sequence)
@@ -108,6 +124,8 @@ def track_sequence(sequence, params: TrackerParams | None = None, seed: int = 0,
             boxes.append(tracker.update(frame))
             states.append(tracker.state.copy())
             results.append(tracker.last)
+            if recentre_every and index % recentre_every == 0 and index < len(usable) and usable[index]:
+                tracker.move_to(recentre_boxes[index])
         tracking += time.perf_counter() - tick
         if on_frame is not None:
             on_frame(index, tracker, frame)
