@@ -26,7 +26,7 @@ import dataclasses
 import numpy as np
 
 from experiments import paper_numbers as paper
-from experiments.common import clean, context_from_args, fmt, mean_std, paper_name, score, write_csv
+from experiments.common import clean, collect_and_plot, fmt, mean_std, paper_name, save_figure, score, write_csv
 from nrmlc import io
 
 STEM = "ablation_oracle_recentring"
@@ -105,23 +105,13 @@ def plot(data: dict, path) -> None:
     ax.legend(fontsize=7, loc="lower left", ncol=2)
     ax.set_title(f"Per-frame model vs accumulated error (dashed: paper, Table II), seeds {data['seeds']}",
                  fontsize=8)
-    fig.tight_layout()
-    fig.savefig(path, dpi=100)
-    plt.close(fig)
+    save_figure(fig, path, dpi=100)
 
 
 def main(context=None) -> dict:
-    """Run (or load) the re-centred runs, plot them and write their numbers.
-
-    Returns
-    -------
-    dict
-        ``title``, ``figures``, ``markdown``.
-    """
-    context = context or context_from_args(description=__doc__.splitlines()[0])
-    data = collect(context)
-    png = context.output(STEM, ".png")
-    plot(data, png)
+    """Run (or load) the re-centred runs, plot them and write their numbers; returns the report section
+    (``title``, ``figures``, ``markdown``)."""
+    context, data, png, _ = collect_and_plot(context, __doc__, STEM, collect, plot)
     labels = [period_label(p) for p in data["periods"]]
     header = ["sequence"] + labels + [f"{k} std" for k in labels] + [f"{k} cle" for k in labels] + ["paper"]
     write_csv(context.output(STEM, ".csv"), header, [[r[k] for k in header] for r in data["rows"]])

@@ -33,7 +33,7 @@ from __future__ import annotations
 import numpy as np
 
 from experiments import paper_numbers as paper
-from experiments.common import clean, context_from_args, fmt, mean_std, paper_name, score, write_csv
+from experiments.common import clean, collect_and_plot, fmt, mean_std, paper_name, save_figure, score, write_csv
 from nrmlc import io
 
 STEM = "ablation_per_sequence_motion"
@@ -137,23 +137,13 @@ def plot(data: dict, path) -> None:
         ax.grid(axis="y", alpha=0.3)
         ax.legend(fontsize=8, loc="upper center", ncol=3)
     ax.set_title(f"Motion parameters: one set vs per sequence, mean ± std over seeds {data['seeds']}", fontsize=9)
-    fig.tight_layout()
-    fig.savefig(path, dpi=100)
-    plt.close(fig)
+    save_figure(fig, path, dpi=100)
 
 
 def main(context=None) -> dict:
-    """Run (or load) the comparison, plot it and write its numbers.
-
-    Returns
-    -------
-    dict
-        ``title``, ``figures``, ``markdown``.
-    """
-    context = context or context_from_args(description=__doc__.splitlines()[0])
-    data = collect(context)
-    png = context.output(STEM, ".png")
-    plot(data, png)
+    """Run (or load) the comparison, plot it and write its numbers; returns the report section
+    (``title``, ``figures``, ``markdown``)."""
+    context, data, png, _ = collect_and_plot(context, __doc__, STEM, collect, plot)
     header = ["sequence", "motion_sigmas_classic", "overlap_default", "overlap_default_std", "overlap_classic",
               "overlap_classic_std", "overlap_paper", "cle_default", "cle_classic", "cle_paper"]
     write_csv(context.output(STEM, ".csv"), header,

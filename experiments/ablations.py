@@ -25,7 +25,7 @@ from __future__ import annotations
 import numpy as np
 
 from experiments import paper_numbers as paper
-from experiments.common import clean, context_from_args, fmt, mean_std, paper_name, score, write_csv
+from experiments.common import clean, collect_and_plot, fmt, mean_std, paper_name, save_figure, score, write_csv
 from experiments.fig4_lambda_sweep import plain_params
 from nrmlc import io
 
@@ -131,23 +131,13 @@ def plot(data: dict, path) -> None:
             if key == "overlap":
                 ax.set_ylim(0, 1)
     fig.suptitle(f"Ablations on {', '.join(data['sequences'])}, mean ± std over seeds {data['seeds']}", fontsize=10)
-    fig.tight_layout()
-    fig.savefig(path, dpi=100)
-    plt.close(fig)
+    save_figure(fig, path, dpi=100)
 
 
 def main(context=None) -> dict:
-    """Run (or load) every ablation, plot and write the numbers.
-
-    Returns
-    -------
-    dict
-        ``title``, ``figures``, ``markdown``.
-    """
-    context = context or context_from_args(description=__doc__.splitlines()[0])
-    data = collect(context)
-    png = context.output(STEM, ".png")
-    plot(data, png)
+    """Run (or load) every ablation, plot and write the numbers; returns the report section
+    (``title``, ``figures``, ``markdown``)."""
+    context, data, png, _ = collect_and_plot(context, __doc__, STEM, collect, plot)
     keys = [k for k, _, _ in METRICS]
     rows = []
     for family in data["families"]:

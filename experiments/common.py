@@ -336,3 +336,40 @@ def context_from_namespace(args) -> Context:
     if getattr(args, "peers", None):
         context.peer_root = Path(args.peers).resolve()
     return context
+
+
+def collect_and_plot(context, doc: str, stem: str, collect, plot):
+    """The opening every figure script's ``main`` shares.
+
+    Builds the context from the command line when the script runs alone (its
+    module docstring's first line is the ``--help`` text), collects the numbers
+    and draws ``figures/<stem>.png``.
+
+    Returns
+    -------
+    context : Context
+    data : dict, what ``collect(context)`` returned
+    png : Path
+    plotted : whatever ``plot(data, png)`` returned
+    """
+    context = context or context_from_args(description=doc.splitlines()[0])
+    data = collect(context)
+    png = context.output(stem, ".png")
+    return context, data, png, plot(data, png)
+
+
+def save_figure(fig, path, dpi: int = 100, rect=None) -> Path:
+    """Lay out ``fig`` (``tight_layout`` within ``rect``), write it to ``path`` as PNG
+    atomically (a killed run leaves the old file or the new one, never half of one) and
+    close it."""
+    import io as _io
+
+    import matplotlib.pyplot as plt
+
+    from nrmlc import io
+
+    fig.tight_layout(rect=rect)
+    buffer = _io.BytesIO()
+    fig.savefig(buffer, format="png", dpi=dpi)
+    plt.close(fig)
+    return io.write_bytes(path, buffer.getvalue())

@@ -19,6 +19,7 @@ import matplotlib.pyplot as plt
 import numpy as np
 from matplotlib.patches import Rectangle
 
+from experiments.common import save_figure
 from experiments.analysis_common import Budget, budget_for, describe_params, get_context, tracker_params
 from nrmlc import io
 from nrmlc.metrics import overlaps
@@ -162,9 +163,7 @@ def _plot(context, sequence, runs, frame, result) -> None:
     ax.set_ylim(min(bottom + margin, height - 0.5), max(top - margin, -0.5))
     ax.set_title(f"{sequence.name} #{frame + 1} (green: no l2, red: l2, yellow: GT)", fontsize=8)
     ax.axis("off")
-    fig.tight_layout()
-    fig.savefig(context.output(STEM, ".png"), dpi=120)
-    plt.close(fig)
+    save_figure(fig, context.output(STEM, ".png"), dpi=120)
 
 
 def _markdown(result) -> str:

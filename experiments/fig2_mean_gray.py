@@ -15,6 +15,7 @@ from __future__ import annotations
 import matplotlib.pyplot as plt
 import numpy as np
 
+from experiments.common import save_figure
 from experiments.analysis_common import (
     Budget, budget_for, collect_many, describe_params, get_context, limit, tracker_params,
 )
@@ -91,9 +92,7 @@ def _plot(context, collections, overall) -> None:
         ax.axhline(BOUND, color="k", ls="--", lw=1, label="1/32: max for unit norm, >= 0")
         ax.legend(fontsize=7, loc="lower right")
         ax.grid(alpha=0.3)
-    fig.tight_layout()
-    fig.savefig(context.output(STEM, ".png"), dpi=120)
-    plt.close(fig)
+    save_figure(fig, context.output(STEM, ".png"), dpi=120)
 
 
 def _markdown(result, budget) -> str:

@@ -15,7 +15,7 @@ from __future__ import annotations
 import numpy as np
 
 from experiments import peers
-from experiments.common import clean, context_from_args, paper_name
+from experiments.common import clean, collect_and_plot, paper_name, save_figure
 from nrmlc import io
 
 STEM = "fig3_qualitative"
@@ -116,23 +116,14 @@ def plot(data: dict, path) -> None:
                for n in used]
     fig.legend(handles, used, loc="upper center", ncol=min(len(used), 6), fontsize=8, frameon=False,
                facecolor="black")
-    fig.tight_layout(rect=(0, 0, 1, 1 - 0.5 / fig.get_figheight()))
-    fig.savefig(path, dpi=60)  # 12 sequences x 4 frames: keeps the PNG well under 2 MB
-    plt.close(fig)
+    # 12 sequences x 4 frames at dpi 60 keeps the PNG well under 2 MB.
+    save_figure(fig, path, dpi=60, rect=(0, 0, 1, 1 - 0.5 / fig.get_figheight()))
 
 
 def main(context=None) -> dict:
-    """Draw the grid and write the boxes behind it.
-
-    Returns
-    -------
-    dict
-        ``title``, ``figures``, ``markdown``.
-    """
-    context = context or context_from_args(description=__doc__.splitlines()[0])
-    data = collect(context)
-    png = context.output(STEM, ".png")
-    plot(data, png)
+    """Draw the grid and write the boxes behind it; returns the report section
+    (``title``, ``figures``, ``markdown``)."""
+    context, data, png, _ = collect_and_plot(context, __doc__, STEM, collect, plot)
     io.write_json(context.output(STEM, ".json"), clean({
         "seed": data["seed"],
         "sequences": [{"sequence": row["sequence"].name, "frames_1_based": [f + 1 for f in row["frames"]],

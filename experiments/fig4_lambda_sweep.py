@@ -16,7 +16,7 @@ from __future__ import annotations
 import numpy as np
 
 from experiments import paper_numbers as paper
-from experiments.common import clean, context_from_args, fmt, mean_std, paper_name, score, write_csv
+from experiments.common import clean, collect_and_plot, fmt, mean_std, paper_name, save_figure, score, write_csv
 from nrmlc import io
 
 STEM = "fig4_lambda_sweep"
@@ -91,23 +91,13 @@ def plot(data: dict, path) -> None:
            title=f"Average overlap vs λ over {len(data['sequences'])} sequences")
     ax.grid(alpha=0.3)
     ax.legend(fontsize=7, loc="lower center")
-    fig.tight_layout()
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
+    save_figure(fig, path, dpi=120)
 
 
 def main(context=None) -> dict:
-    """Run (or load) the sweep, plot it and write its numbers.
-
-    Returns
-    -------
-    dict
-        ``title``, ``figures``, ``markdown``.
-    """
-    context = context or context_from_args(description=__doc__.splitlines()[0])
-    data = collect(context)
-    png = context.output(STEM, ".png")
-    plot(data, png)
+    """Run (or load) the sweep, plot it and write its numbers; returns the report section
+    (``title``, ``figures``, ``markdown``)."""
+    context, data, png, _ = collect_and_plot(context, __doc__, STEM, collect, plot)
     rows = []
     for p in data["points"]:
         rows.append([p["label"], p["coding"], p["lam"], p["beta"], "average", p["overlap"], p["overlap_std"]])

@@ -14,6 +14,7 @@ import matplotlib.pyplot as plt
 import numpy as np
 from matplotlib.patches import Patch, Rectangle
 
+from experiments.common import save_figure
 from experiments.analysis_common import Budget, budget_for, describe_params, get_context, tracker_params
 from nrmlc import io
 from nrmlc.runner import RunSpec
@@ -228,9 +229,7 @@ def _plot(context, sequence, run, frame, d, n_pos, lengths, flags, truth, thresh
     ax.set_ylim(-0.3, max(float(lengths[1:].max()) if len(lengths) > 1 else 0.0, threshold + 1) * 1.4 + 0.5)
     ax.legend(fontsize=7, ncol=5, loc="upper left")
     ax.grid(alpha=0.3)
-    fig.tight_layout()
-    fig.savefig(context.output(STEM, ".png"), dpi=120)
-    plt.close(fig)
+    save_figure(fig, context.output(STEM, ".png"), dpi=120)
 
 
 def _markdown(result, title) -> str:

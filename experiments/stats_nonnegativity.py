@@ -17,6 +17,7 @@ from __future__ import annotations
 import matplotlib.pyplot as plt
 import numpy as np
 
+from experiments.common import save_figure
 from experiments.analysis_common import (
     LAMBDAS, PAPER_A_RANGE, PAPER_GRAM_BOUND, Budget, budget_for, collect_many, dictionary_weights, fmt,
     tracker_params,
@@ -168,9 +169,7 @@ def _plot(context, rows, collections, grams) -> None:
     ax.set_xlabel("$(A^TA)_{ij}$")
     ax.set_yscale("log")
     ax.legend(fontsize=7)
-    fig.tight_layout()
-    fig.savefig(context.output(STEM, ".png"), dpi=120)
-    plt.close(fig)
+    save_figure(fig, context.output(STEM, ".png"), dpi=120)
 
 
 def _at(rows, lam):

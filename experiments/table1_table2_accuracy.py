@@ -25,8 +25,8 @@ import numpy as np
 
 from experiments import paper_numbers as paper
 from experiments import peers
-from experiments.common import (clean, context_from_args, fmt, mean_std, paper_name, score, spec_frames,
-                                write_csv)
+from experiments.common import (clean, collect_and_plot, fmt, mean_std, paper_name, save_figure, score,
+                                spec_frames, write_csv)
 from nrmlc import io
 from nrmlc.metrics import PRECISION_THRESHOLDS, SUCCESS_THRESHOLDS
 
@@ -253,9 +253,7 @@ def plot(data: dict, path) -> dict:
         for ax in axes[row]:
             ax.grid(alpha=0.3)
             ax.legend(fontsize=7, loc="lower left" if ax is axes[row, 0] else "lower right")
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    save_figure(fig, path, dpi=110)
     return out
 
 
@@ -296,17 +294,9 @@ def _json(data: dict, curves: dict) -> dict:
 
 
 def main(context=None) -> dict:
-    """Compute (or load) the runs, write the tables, the plots and their numbers.
-
-    Returns
-    -------
-    dict
-        ``title``, ``figures`` (PNG file names), ``markdown`` (the report section).
-    """
-    context = context or context_from_args(description=__doc__.splitlines()[0])
-    data = collect(context)
-    png = context.output(STEM, ".png")
-    curves = plot(data, png)
+    """Compute (or load) the runs, write the tables, the plots and their numbers; returns the report section
+    (``title``, ``figures``, ``markdown``)."""
+    context, data, png, curves = collect_and_plot(context, __doc__, STEM, collect, plot)
     write_csv(context.output(STEM, ".csv"),
               ["block", "sequence", "paper_name", "tracker", "source", "file", "cle", "cle_std", "overlap",
                "overlap_std", "success_auc", "precision_20", "n_runs", "n_frames", "fps"], _csv_rows(data))

@@ -21,6 +21,7 @@ from fractions import Fraction
 import matplotlib.pyplot as plt
 import numpy as np
 
+from experiments.common import save_figure
 from experiments.analysis_common import (
     LAMBDAS, N_NEAREST, PAPER_A_RANGE, PAPER_GRAM_BOUND, Budget, budget_for, collect_many, describe_params, fmt,
     get_context, limit, tracker_params, max_offdiag_row_sum, pooled, strictly_dd, sum_to_one_codes,
@@ -278,9 +279,7 @@ def _plot(context, nearest, random_subsets) -> None:
     axes[0].legend(fontsize=7)
     axes[1].legend(fontsize=7)
     fig.suptitle(r"Theorem 1 on patch data: $F=A^TA+\lambda I$, $c=F^{-1}1$", fontsize=10)
-    fig.tight_layout()
-    fig.savefig(context.output(STEM, ".png"), dpi=120)
-    plt.close(fig)
+    save_figure(fig, context.output(STEM, ".png"), dpi=120)
 
 
 def _markdown(result, context, sequences, budget) -> str:
