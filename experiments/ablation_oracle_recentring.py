@@ -89,7 +89,7 @@ def plot(data: dict, path) -> None:
         is_paper = row["paper_name"] is not None
         ax.plot(positions, [row[k] for k in labels], marker="o" if is_paper else ".",
                 lw=1.6 if is_paper else 0.7, alpha=1.0 if is_paper else 0.45,
-                color=colours(i % 10), label=row["sequence"] if is_paper else None)
+                color=colours(i % 10) if is_paper else "0.55", label=row["sequence"] if is_paper else None)
         if row["paper"] is not None:
             ax.axhline(row["paper"], color=colours(i % 10), ls="--", lw=0.8)
     for group, style in (("paper's sequences", "k-"), ("other sequences", "k:")):
@@ -103,7 +103,8 @@ def plot(data: dict, path) -> None:
     ax.set_ylim(0, 1)
     ax.grid(alpha=0.3)
     ax.legend(fontsize=7, loc="lower left", ncol=2)
-    ax.set_title(f"Per-frame model vs accumulated error (dashed: paper, Table II), seeds {data['seeds']}",
+    ax.set_title(f"Per-frame model vs accumulated error (dashed: paper, Table II; gray: other sequences), "
+                 f"seeds {data['seeds']}",
                  fontsize=8)
     save_figure(fig, path, dpi=100)
 
