@@ -66,9 +66,9 @@ def test_run_all_writes_every_output(grid):
     for stem in OUTPUTS:
         assert f"]({stem}.png)" in report
     assert "Code version" in report and "synthetic suite" in report
-    # 18 distinct tracker configurations on one sequence, one seed, and 3 re-centred runs of the
+    # 24 distinct tracker configurations on one sequence, one seed, and 3 re-centred runs of the
     # default one; the shared ones ran once.
-    assert len(state) == 18 + 3 + 1  # plus the OpenCV MIL run
+    assert len(state) == 24 + 3 + 1  # plus the OpenCV MIL run
     assert len(list((tmp / "cache" / "peers").glob("*.npz"))) == 1
 
 
