@@ -141,7 +141,7 @@ def plot(data: dict, path) -> None:
             if key == "overlap":
                 ax.set_ylim(0, 1)
     fig.suptitle(f"Ablations on {', '.join(data['sequences'])}, mean ± std over seeds {data['seeds']}", fontsize=10)
-    save_figure(fig, path, dpi=100)
+    save_figure(fig, path, dpi=100, rect=(0, 0, 1, 1 - 0.35 / fig.get_figheight()))  # room for the suptitle
 
 
 def main(context=None) -> dict:
