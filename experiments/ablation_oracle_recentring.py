@@ -63,16 +63,14 @@ def collect(context) -> dict:
             key = period_label(period)
             row[key], row[f"{key} std"] = mean_std(e.mean_overlap for e in evaluations)
             row[f"{key} cle"] = mean_std(e.mean_center_error for e in evaluations)[0]
-        name = paper_name(sequence.name)
-        row["paper"] = paper.OVERLAP.get(name, {}).get("Ours") if name else None
+        row["paper"] = paper.OVERLAP.get(row["paper_name"], {}).get("Ours")
         rows.append(row)
     groups = {"paper's sequences": [r for r in rows if r["paper_name"] is not None],
               "other sequences": [r for r in rows if r["paper_name"] is None]}
     averages = {}
     for group, members in groups.items():
         if members:
-            averages[group] = {period_label(p): float(np.mean([r[period_label(p)] for r in members]))
-                               for p in PERIODS}
+            averages[group] = {key: float(np.mean([r[key] for r in members])) for key in map(period_label, PERIODS)}
             papers = [r["paper"] for r in members if r["paper"] is not None]
             averages[group]["paper"] = float(np.mean(papers)) if papers and len(papers) == len(members) else None
     return {"rows": rows, "averages": averages, "periods": list(PERIODS), "seeds": list(context.sweep_seeds)}
