@@ -19,7 +19,8 @@ coordinates). A state's box is the axis-aligned bounding box of the template's c
 
 Canonical states. ``affine_to_state`` returns the unique state with ``scale > 0``,
 ``aspect > 0``, ``rotation`` in (-pi, pi], ``skew`` in (-pi/4, pi/4] (and skew = 0 when
-aspect = 1). Every matrix with positive determinant has one; ``state -> matrix -> state``
+aspect = 1; a skew within 1e-12 of -pi/4, where rounding cannot tell the two ends
+apart, is returned as its +pi/4 twin). Every matrix with positive determinant has one; ``state -> matrix -> state``
 is the identity on canonical states, ``matrix -> state -> matrix`` everywhere.
 """
 from __future__ import annotations
@@ -102,9 +103,37 @@ def affine_to_state(matrices: np.ndarray) -> np.ndarray:
         skew = np.where(spread > 1e-12 * (p + t), 0.5 * np.arctan2(-2 * q / diff, (p - t) / diff), 0.0)
     first = 0.5 * (p + t + diff)
     second = 0.5 * (p + t - diff)
+    # At skew = +-pi/4, cos(2 skew) = 0 and rounding alone picks the sign above, so
+    # skew = pi/4 can come out as -pi/4. Both name the same warp, since
+    # (a, b, skew) = (b, a, skew + pi/2); fold onto the documented end, +pi/4.
+    folded = skew <= -np.pi / 4 + 1e-12
+    skew = np.where(folded, skew + np.pi / 2, skew)
+    first, second = np.where(folded, second, first), np.where(folded, first, second)
     aspect = np.where(spread > 1e-12 * (p + t), second / first, 1.0)
     rotation = np.where(rotation <= -np.pi, rotation + 2 * np.pi, rotation)
     return np.stack([matrices[..., 0, 2], matrices[..., 1, 2], first, rotation, aspect, skew], axis=-1)
+
+
+def usable_boxes(boxes: np.ndarray) -> np.ndarray:
+    """Which boxes name a region: finite values and ``w > 0``, ``h > 0``.
+
+    One rule for every reader of boxes: the metrics evaluate exactly these
+    ground-truth rows, and the tracker accepts only such boxes to move to.
+
+    Parameters
+    ----------
+    boxes : (..., 4) float
+        ``(x, y, w, h)``; NaN rows (unannotated frames) are allowed.
+
+    Returns
+    -------
+    usable : (...) bool
+    """
+    boxes = np.asarray(boxes, dtype=np.float64)
+    if boxes.shape[-1:] != (4,):
+        raise ParameterError(f"boxes must have shape (..., 4), got {boxes.shape}")
+    with np.errstate(invalid="ignore"):
+        return np.isfinite(boxes).all(axis=-1) & (boxes[..., 2] > 0) & (boxes[..., 3] > 0)
 
 
 def box_to_state(boxes: np.ndarray, patch_size: int = PATCH_SIZE) -> np.ndarray:

@@ -74,6 +74,7 @@ import numpy as np
 
 from nrmlc.data.boxes import read_box_file
 from nrmlc.errors import DataError, ParameterError
+from nrmlc.geometry import usable_boxes
 
 __all__ = [
     "SUCCESS_THRESHOLDS",
@@ -349,7 +350,7 @@ def evaluate(predicted, groundtruth, skip_first: bool = True) -> Evaluation:
     else:
         p = np.vstack([p, np.full((n - p.shape[0], 4), np.nan)])
 
-    annotated = np.isfinite(g).all(axis=1) & (g[:, 2] > 0) & (g[:, 3] > 0)
+    annotated = usable_boxes(g)
     if skip_first and n > 0:
         annotated[0] = False
     frames = np.flatnonzero(annotated)

@@ -5,8 +5,17 @@ import os
 from pathlib import Path
 
 import pytest
+from hypothesis import settings
 
 REPO_ROOT = Path(__file__).resolve().parent.parent
+
+# Property tests draw their examples from a fixed seed by default, so the suite
+# (and CI) gives the same verdict on every run; a CI failure must be reproducible
+# here. `pytest --hypothesis-profile=explore` draws fresh random examples, to hunt
+# for new counterexamples before they are pinned with @example.
+settings.register_profile("deterministic", derandomize=True, database=None)
+settings.register_profile("explore", derandomize=False)
+settings.load_profile("deterministic")
 
 
 @pytest.fixture(scope="session")

@@ -104,6 +104,7 @@ def test_recentring_moves_the_estimate_every_period(sequence):
 @pytest.mark.parametrize("kwargs, match", [
     (dict(recentre_every=-1), "recentre_every"),
     (dict(recentre_every=2), "recentre_boxes"),
+    (dict(recentre_every=2, recentre_boxes=np.ones((3, 3))), "recentre_boxes"),
 ])
 def test_recentring_arguments_are_checked(sequence, kwargs, match):
     with pytest.raises(ParameterError, match=match):

@@ -24,7 +24,7 @@ import numpy as np
 
 from nrmlc.data.image import to_gray_float32
 from nrmlc.errors import ParameterError
-from nrmlc.geometry import box_to_state, state_to_affine, state_to_box
+from nrmlc.geometry import box_to_state, state_to_affine, state_to_box, usable_boxes
 from nrmlc.kernels.coding import combine_dictionaries, encode_dictionaries
 from nrmlc.kernels.distance import candidate_template_dots, nearest_templates, squared_norms, template_gram
 from nrmlc.kernels.warp import warp_patches
@@ -222,7 +222,7 @@ class NRMLCTracker:
         if self.state is None:
             raise ParameterError("call init(frame, box) before move_to(box)")
         box = np.asarray(box, dtype=np.float64).reshape(-1)
-        if box.shape != (4,) or not np.all(np.isfinite(box)) or box[2] <= 0 or box[3] <= 0:
+        if box.shape != (4,) or not usable_boxes(box):
             raise ParameterError(f"box must be 4 finite numbers (x, y, w, h) with w, h > 0, got {box.tolist()}")
         self.state = box_to_state(box, self.params.patch_size)
 

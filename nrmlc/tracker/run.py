@@ -7,6 +7,7 @@ from dataclasses import dataclass, field, fields
 import numpy as np
 
 from nrmlc.errors import ParameterError
+from nrmlc.geometry import usable_boxes
 from nrmlc.tracker.nrmlc_tracker import FrameResult, NRMLCTracker
 from nrmlc.tracker.params import TrackerParams
 
@@ -101,7 +102,9 @@ def track_sequence(sequence, params: TrackerParams | None = None, seed: int = 0,
         raise ParameterError("recentre_every needs recentre_boxes")
     if recentre_every:
         recentre_boxes = np.asarray(recentre_boxes, dtype=np.float64)
-        usable = np.isfinite(recentre_boxes).all(axis=1) & (recentre_boxes[:, 2] > 0) & (recentre_boxes[:, 3] > 0)
+        if recentre_boxes.ndim != 2 or recentre_boxes.shape[1] != 4:
+            raise ParameterError(f"recentre_boxes must have shape (n_frames, 4), got {recentre_boxes.shape}")
+        usable = usable_boxes(recentre_boxes)
     total = len(sequence) if n_frames is None else max(1, min(int(n_frames), len(sequence)))
     box = sequence.init_box if init_box is None else init_box
     frames = iter(sequence)
