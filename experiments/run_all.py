@@ -47,6 +47,7 @@ SCRIPTS = (
     ("experiments.ablations", True),
     ("experiments.ablation_per_sequence_motion", True),
     ("experiments.ablation_oracle_recentring", True),
+    ("experiments.ablation_synthetic_dev", True),
 )
 
 #: Rough tracking speed for the time estimate (frames per second per worker).

@@ -17,11 +17,12 @@ from experiments.common import context_from_args, score
 from nrmlc.data import open_sequence
 
 MY_SCRIPTS = ("table1_table2_accuracy", "fig3_qualitative", "fig4_lambda_sweep", "ablations",
-              "ablation_per_sequence_motion", "ablation_oracle_recentring")
+              "ablation_per_sequence_motion", "ablation_oracle_recentring", "ablation_synthetic_dev")
 OUTPUTS = {"table1_table2_accuracy": (".png", ".csv", ".json"), "fig3_qualitative": (".png", ".json"),
            "fig4_lambda_sweep": (".png", ".csv", ".json"), "ablations": (".png", ".csv", ".json"),
            "ablation_per_sequence_motion": (".png", ".csv", ".json"),
-           "ablation_oracle_recentring": (".png", ".csv", ".json")}
+           "ablation_oracle_recentring": (".png", ".csv", ".json"),
+           "ablation_synthetic_dev": (".png", ".csv", ".json")}
 
 
 def tiny_args(tmp, figures="figures"):
@@ -66,9 +67,9 @@ def test_run_all_writes_every_output(grid):
     for stem in OUTPUTS:
         assert f"]({stem}.png)" in report
     assert "Code version" in report and "synthetic suite" in report
-    # 24 distinct tracker configurations on one sequence, one seed, and 3 re-centred runs of the
-    # default one; the shared ones ran once.
-    assert len(state) == 24 + 3 + 1  # plus the OpenCV MIL run
+    # 24 distinct tracker configurations on one sequence, one seed, 3 re-centred runs of the
+    # default one, and 8 configurations on the 6 development sequences; the shared ones ran once.
+    assert len(state) == 24 + 3 + 8 * 6 + 1  # plus the OpenCV MIL run
     assert len(list((tmp / "cache" / "peers").glob("*.npz"))) == 1
 
 
@@ -89,6 +90,24 @@ def test_numbers_are_consistent(grid):
     assert coding["constrained"]["negative_share_c"] == 0.0  # the constraint forbids negative codes
     plain = next(p for p in sweep["points"] if p["label"] == "lambda=beta=0")
     assert coding["plain (λ = β = 0)"]["overlap"] == pytest.approx(plain["overlap"])
+
+
+def test_synthetic_dev_sets_the_ablation_runs_beside_the_development_runs(grid):
+    tmp, _, _ = grid
+    dev = json.loads((tmp / "figures" / "ablation_synthetic_dev.json").read_text())
+    ablations = {f["family"]: {r["label"]: r for r in f["rows"]}
+                 for f in json.loads((tmp / "figures" / "ablations.json").read_text())["families"]}
+    assert [f["family"] for f in dev["families"]] == ["scale noise", "template radii"]
+    assert len(dev["dev_sequences"]) == 6 and dev["dev_seeds"] == [0]
+    for family in dev["families"]:
+        assert [r["label"] for r in family["rows"]] == list(ablations[family["family"]])
+        for row in family["rows"]:
+            assert row["overlap_given"] == pytest.approx(ablations[family["family"]][row["label"]]["overlap"])
+            assert 0 <= row["overlap_dev"] <= 1
+        ranked = sorted((r["overlap_given"] for r in family["rows"]), reverse=True)
+        best = max(family["rows"], key=lambda r: r["overlap_dev"])
+        assert family["best_on_dev"] == best["label"]
+        assert ranked[family["best_on_dev_rank_on_given"] - 1] == pytest.approx(best["overlap_given"])
 
 
 def test_rerun_recomputes_nothing(grid):
