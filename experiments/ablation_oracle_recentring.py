@@ -26,7 +26,7 @@ import dataclasses
 import numpy as np
 
 from experiments import paper_numbers as paper
-from experiments.common import clean, collect_and_plot, fmt, mean_std, paper_name, save_figure, score, write_csv
+from experiments.common import clean, collect_and_plot, fmt, mean_std, paper_name, save_figure, write_csv
 from nrmlc import io
 
 STEM = "ablation_oracle_recentring"
@@ -59,7 +59,7 @@ def collect(context) -> dict:
         row = {"sequence": sequence.name, "paper_name": paper_name(sequence.name)}
         for period in PERIODS:
             specs = _specs(context, [sequence], period)
-            evaluations = [score(r.boxes, s.sequence) for s, r in zip(specs, context.run(specs))]
+            evaluations = context.evaluate(specs)
             key = period_label(period)
             row[key], row[f"{key} std"] = mean_std(e.mean_overlap for e in evaluations)
             row[f"{key} cle"] = mean_std(e.mean_center_error for e in evaluations)[0]

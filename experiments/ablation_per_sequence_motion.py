@@ -33,7 +33,7 @@ from __future__ import annotations
 import numpy as np
 
 from experiments import paper_numbers as paper
-from experiments.common import clean, collect_and_plot, fmt, mean_std, paper_name, save_figure, score, write_csv
+from experiments.common import clean, collect_and_plot, fmt, mean_std, paper_name, save_figure, write_csv
 from nrmlc import io
 
 STEM = "ablation_per_sequence_motion"
@@ -99,7 +99,7 @@ def collect(context) -> dict:
                "affsig": list(CLASSIC_MOTION[sequence.name]["affsig"])}
         for key, params in (("default", base), ("classic", classic)):
             specs = context.specs([sequence], params, context.seeds)
-            evaluations = [score(r.boxes, s.sequence) for s, r in zip(specs, context.run(specs))]
+            evaluations = context.evaluate(specs)
             overlaps = [e.mean_overlap for e in evaluations]
             row[f"overlap_{key}"], row[f"overlap_{key}_std"] = mean_std(overlaps)
             row[f"cle_{key}"], row[f"cle_{key}_std"] = mean_std(e.mean_center_error for e in evaluations)

@@ -23,7 +23,7 @@ import numpy as np
 from scipy.stats import spearmanr
 
 from experiments import ablations
-from experiments.common import clean, collect_and_plot, fmt, mean_std, save_figure, score, write_csv
+from experiments.common import clean, collect_and_plot, fmt, mean_std, save_figure, write_csv
 from nrmlc import io
 
 STEM = "ablation_synthetic_dev"
@@ -45,6 +45,10 @@ def dev_suite() -> list:
     return synthetic_suite(n_frames=DEV_FRAMES, n_sequences=DEV_SEQUENCES, seed=0)
 
 
+def _dev_seeds(context) -> list:
+    return list(context.sweep_seeds[:DEV_SEEDS])
+
+
 def _families(context) -> list:
     return [(family, configs) for family, configs in ablations.families(context) if family in FAMILIES]
 
@@ -53,7 +57,7 @@ def runs(context) -> list:
     """The development runs, and the given-data ones (the ablations' own, shared through the cache)."""
     development, given = dev_suite(), context.paper_sequences()
     return [spec for family, configs in _families(context) for label, params in configs
-            for sequences, seeds, where in ((development, context.sweep_seeds[:DEV_SEEDS], "development"),
+            for sequences, seeds, where in ((development, _dev_seeds(context), "development"),
                                             (given, context.sweep_seeds, "ablation"))
             for spec in context.specs(sequences, params, seeds, label=f"{where} {family}: {label}")]
 
@@ -61,8 +65,7 @@ def runs(context) -> list:
 def _overlap(context, sequences, params, seeds) -> tuple[float, float, dict]:
     """(mean, std over seeds) of the across-sequence average overlap, and the per-sequence means."""
     specs = context.specs(sequences, params, seeds)
-    overlaps = {(s.sequence.name, s.seed): score(r.boxes, s.sequence).mean_overlap
-                for s, r in zip(specs, context.run(specs))}
+    overlaps = {(s.sequence.name, s.seed): e.mean_overlap for s, e in zip(specs, context.evaluate(specs))}
     mean, std = mean_std(np.mean([overlaps[(q.name, seed)] for q in sequences]) for seed in seeds)
     by_sequence = {q.name: float(np.mean([overlaps[(q.name, seed)] for seed in seeds])) for q in sequences}
     return mean, std, by_sequence
@@ -76,7 +79,7 @@ def _rank_correlation(first, second) -> float | None:
 
 def collect(context) -> dict:
     given, development = context.paper_sequences(), dev_suite()
-    given_seeds, dev_seeds = list(context.sweep_seeds), list(context.sweep_seeds[:DEV_SEEDS])
+    given_seeds, dev_seeds = list(context.sweep_seeds), _dev_seeds(context)
     families = []
     for family, configs in _families(context):
         rows = []

@@ -166,6 +166,10 @@ class Context:
         """Results of ``specs`` (computed if not cached), in order."""
         return self.cache.run(specs, executor=self.executor, jobs=self.jobs)
 
+    def evaluate(self, specs: list[RunSpec]) -> list:
+        """The :func:`score` of each run of ``specs`` (computed if not cached), in order."""
+        return [score(result.boxes, spec.sequence) for spec, result in zip(specs, self.run(specs))]
+
     def output(self, stem: str, suffix: str) -> Path:
         self.figures_dir.mkdir(parents=True, exist_ok=True)
         return self.figures_dir / f"{stem}{suffix}"
