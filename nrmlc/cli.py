@@ -8,6 +8,9 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
+import re
+import signal
 import sys
 import warnings
 
@@ -16,7 +19,8 @@ def _cmd_evaluate(args: argparse.Namespace) -> int:
     from nrmlc.data import read_box_file
     from nrmlc.metrics import evaluate_files
 
-    n_predicted, n_annotated = len(read_box_file(args.results)), len(read_box_file(args.groundtruth))
+    n_predicted = len(read_box_file(args.results, predictions=True))
+    n_annotated = len(read_box_file(args.groundtruth))
     if n_annotated < n_predicted:
         warnings.warn(f"{args.groundtruth}: {n_annotated} ground-truth boxes for {n_predicted} result boxes; "
                       f"only the first {n_annotated} frames are evaluated")
@@ -45,11 +49,55 @@ def _cmd_list(args: argparse.Namespace) -> int:
 
 def _cmd_synth(args: argparse.Namespace) -> int:
     from nrmlc.data import synthetic_suite, write_otb_sequence
+    from nrmlc.data.synthetic import MAX_FRAMES, MAX_SEQUENCES
+    from nrmlc.errors import ParameterError
+    from nrmlc.io import check_output
 
+    for option, value, low, high in (("--count", args.count, 1, MAX_SEQUENCES), ("--frames", args.frames, 2, MAX_FRAMES),
+                                     ("--seed", args.seed, 0, 2**63 - 1)):
+        if not low <= value <= high:
+            raise ParameterError(f"{option} must be in {low}..{high}, got {value}")
+    # The folder must be creatable and writable; probe it with a file name inside it.
+    check_output(os.path.join(args.out, "groundtruth_rect.txt"), "--out")
     for sequence in synthetic_suite(n_frames=args.frames, n_sequences=args.count, seed=args.seed):
         folder = write_otb_sequence(sequence, f"{args.out}/{sequence.name}")
         print(folder)
     return 0
+
+
+def _add_track(commands) -> None:
+    from nrmlc.cli_track import add_track_command
+
+    add_track_command(commands)
+
+
+#: Functions that each add one more subcommand (``add_parser`` + ``set_defaults(run=...)``).
+#: A new command is a function here; its module is imported when the parser is built.
+_EXTRA_COMMANDS = [_add_track]
+
+# A value that starts with a minus sign and a digit, e.g. ``--init-box -5,10,20,20``:
+# argparse takes it for an option unless it is a plain negative number.
+_NEGATIVE_VALUE = re.compile(r"^-[0-9.]")
+
+
+def _join_negative_values(argv: list[str]) -> list[str]:
+    """``--opt -5,10`` -> ``--opt=-5,10`` for options that take a value."""
+    joined: list[str] = []
+    index = 0
+    while index < len(argv):
+        token = argv[index]
+        if (token.startswith("--") and "=" not in token and index + 1 < len(argv)
+                and _NEGATIVE_VALUE.match(argv[index + 1]) and token in _VALUE_OPTIONS):
+            joined.append(f"{token}={argv[index + 1]}")
+            index += 2
+            continue
+        joined.append(token)
+        index += 1
+    return joined
+
+
+#: Long options that take a value (filled by build_parser).
+_VALUE_OPTIONS: set[str] = set()
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -78,30 +126,45 @@ def build_parser() -> argparse.ArgumentParser:
     synth.add_argument("--seed", type=int, default=0, help="generator seed")
     synth.set_defaults(run=_cmd_synth)
 
-    try:
-        from nrmlc.tracker.cli import add_track_command
-    except ImportError:  # the tracker is optional for the evaluation tools
-        pass
-    else:
-        add_track_command(commands)
+    for add_command in _EXTRA_COMMANDS:
+        add_command(commands)
     for command in commands.choices.values():
         # Also accepted after the command name; SUPPRESS keeps a top-level --debug from being reset.
         command.add_argument("--debug", action="store_true", default=argparse.SUPPRESS,
                              help="show tracebacks instead of one-line errors")
+        for action in command._actions:
+            if action.nargs != 0:
+                _VALUE_OPTIONS.update(option for option in action.option_strings if option.startswith("--"))
     return parser
 
 
 def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
-    args = parser.parse_args(argv)
+    args = parser.parse_args(_join_negative_values(list(sys.argv[1:] if argv is None else argv)))
     # Warnings as one "warning: ..." line each (no source line); restored on return
     # so that calling main() from Python does not change the caller's formatting.
     format_warning = warnings.formatwarning
     warnings.formatwarning = lambda message, category, *rest: f"warning: {message}\n"
+    # SIGTERM ends a run like Ctrl-C: outputs in progress are dropped, earlier files kept.
+    previous_sigterm = None
+    if threading_main():
+        previous_sigterm = signal.signal(signal.SIGTERM, _terminate)
     try:
         return _run(args)
     finally:
         warnings.formatwarning = format_warning
+        if previous_sigterm is not None:
+            signal.signal(signal.SIGTERM, previous_sigterm)
+
+
+def threading_main() -> bool:
+    import threading
+
+    return threading.current_thread() is threading.main_thread()
+
+
+def _terminate(signum, frame) -> None:
+    raise KeyboardInterrupt
 
 
 def _run(args: argparse.Namespace) -> int:

@@ -1,20 +1,33 @@
 """Atomic file writes: a reader never sees a half-written file.
 
-Each writer creates a temporary file in the destination folder (same file
-system, so ``os.replace`` is an atomic rename), flushes and fsyncs it, then
-renames it over the target. An interrupted run leaves either the old file
-or the new one, plus at worst a stray ``.tmp-*`` file that is ignored.
+Each writer creates a temporary file with a unique name in the destination
+folder (same file system, so ``os.replace`` is an atomic rename), flushes and
+fsyncs it, then renames it over the target. An interrupted run leaves either
+the old file or the new one, plus at worst a stray ``.tmp-*`` file that is
+ignored; two processes writing the same path each write their own temporary
+file, so the result is one complete file or the other, never a mix.
+
+Symbolic links are written through: a write to a link replaces the file the
+link points to, atomically, and the link stays a link.
+
+:func:`check_output` is the check a command runs on each output path
+*before* any work: the destination must be writable, must not be a folder or
+another non-regular file, and must not be one of the run's inputs.
 """
 from __future__ import annotations
 
+import errno
 import json
 import os
+import stat
 import tempfile
 import threading
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any, Callable, Iterable
 
 import numpy as np
+
+from nrmlc.errors import ParameterError
 
 _umask_lock = threading.Lock()
 
@@ -27,10 +40,62 @@ def _current_umask() -> int:
     return mask
 
 
+def _target(path: str | os.PathLike) -> Path:
+    """The file a write to ``path`` replaces: symbolic links are followed (written through)."""
+    return Path(os.path.realpath(os.fspath(path)))
+
+
+def _fsync_folder(folder: Path) -> None:
+    # Makes the rename itself durable; not every file system allows it (best effort).
+    try:
+        fd = os.open(folder, os.O_RDONLY)
+    except OSError:
+        return
+    try:
+        os.fsync(fd)
+    except OSError:
+        pass
+    finally:
+        os.close(fd)
+
+
+def temporary_for(path: str | os.PathLike) -> Path:
+    """Create an empty, uniquely named temporary file beside ``path``'s target.
+
+    It keeps ``path``'s extension (some writers, like OpenCV's, choose the
+    format from it). Pair it with :func:`commit` or :func:`discard`.
+    """
+    target = _target(path)
+    target.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=f".tmp-{target.stem}-", suffix=target.suffix, dir=target.parent)
+    os.close(fd)
+    # mkstemp creates 0600 files; give results the usual umask-based permissions.
+    os.chmod(tmp, 0o666 & ~_current_umask())
+    return Path(tmp)
+
+
+def commit(tmp: str | os.PathLike, path: str | os.PathLike) -> Path:
+    """fsync the finished temporary file ``tmp`` and rename it over ``path``'s target."""
+    with open(tmp, "rb") as handle:
+        os.fsync(handle.fileno())
+    target = _target(path)
+    os.replace(tmp, target)
+    _fsync_folder(target.parent)
+    return Path(path)
+
+
+def discard(tmp: str | os.PathLike) -> None:
+    """Remove a temporary file (a failed or interrupted write); the target is untouched."""
+    try:
+        os.unlink(tmp)
+    except FileNotFoundError:
+        pass
+
+
 def _atomic(path: str | os.PathLike, write: Callable[[Any], None], mode: str) -> Path:
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".tmp-{path.name}-", dir=path.parent)
+    target = _target(path)
+    target.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=f".tmp-{target.name}-", dir=target.parent)
     # mkstemp creates 0600 files; give results the usual umask-based permissions.
     os.chmod(tmp, 0o666 & ~_current_umask())
     try:
@@ -38,12 +103,91 @@ def _atomic(path: str | os.PathLike, write: Callable[[Any], None], mode: str) ->
             write(handle)
             handle.flush()
             os.fsync(handle.fileno())
-        os.replace(tmp, path)
+        os.replace(tmp, target)
     except BaseException:
         if os.path.exists(tmp):
             os.unlink(tmp)
         raise
-    return path
+    _fsync_folder(target.parent)
+    return Path(path)
+
+
+def _same_file(a: os.stat_result, b: os.stat_result) -> bool:
+    return (a.st_dev, a.st_ino) == (b.st_dev, b.st_ino)
+
+
+def check_output(path: str | os.PathLike, option: str, inputs: Iterable[str | os.PathLike] = (),
+                 input_folders: Iterable[str | os.PathLike] = ()) -> Path:
+    """Refuse an output path before any work is done.
+
+    Parameters
+    ----------
+    path : the path the user gave.
+    option : how the user gave it, for messages (``--out``).
+    inputs : files the run reads (images, ground truth): the output must not
+        be one of them, whatever the path (links and hard links included).
+    input_folders : folders the run reads every file of (the frames'
+        folder): the output must not go inside them.
+
+    Returns
+    -------
+    Path
+        ``path`` unchanged.
+
+    Raises
+    ------
+    ParameterError
+        If the path is empty, a folder, a device, FIFO or socket, a looping
+        link, one of the ``inputs`` or inside ``input_folders``, or its
+        folder cannot be created or written to (tested by creating and
+        removing a temporary file). The message names ``path`` as given.
+    """
+    text = os.fspath(path)
+    where = f"{option} {text}"
+    if not text.strip():
+        raise ParameterError(f"{option}: empty path")
+    try:
+        info = os.stat(text)
+    except FileNotFoundError:
+        info = None  # not there yet (or a link to a file not there yet: it will be created)
+    except OSError as exc:
+        if exc.errno == errno.ELOOP:
+            raise ParameterError(f"{where}: symbolic link loop") from None
+        if exc.errno == errno.ENOTDIR:
+            raise ParameterError(f"{where}: a parent of this path is a file, not a folder") from None
+        raise ParameterError(f"{where}: cannot use this path ({exc.strerror or exc})") from None
+    if info is not None and stat.S_ISDIR(info.st_mode):
+        raise ParameterError(f"{where}: is a folder; give a file name")
+    if info is not None and not stat.S_ISREG(info.st_mode):
+        raise ParameterError(f"{where}: not a regular file (a device, FIFO or socket); give a file name")
+    target = _target(text)
+    for folder in input_folders:
+        folder = _target(folder)
+        if folder == target.parent or folder in target.parents:
+            raise ParameterError(f"{where}: is inside {folder}, which holds this run's input frames; "
+                                 f"write it elsewhere")
+    if info is not None:
+        for source in inputs:
+            try:
+                same = _same_file(info, os.stat(source))
+            except OSError:
+                continue
+            if same:
+                raise ParameterError(f"{where}: is an input of this run ({os.fspath(source)}); "
+                                     f"choose another file")
+    # The nearest existing folder decides whether the missing ones can be created.
+    folder = target.parent
+    while not folder.exists() and folder != folder.parent:
+        folder = folder.parent
+    if not folder.is_dir():
+        raise ParameterError(f"{where}: {folder} is a file, not a folder")
+    try:
+        fd, probe = tempfile.mkstemp(prefix=f".tmp-{target.name}-", dir=folder)
+    except OSError as exc:
+        raise ParameterError(f"{where}: cannot write to folder {folder} ({exc.strerror or exc})") from None
+    os.close(fd)
+    os.unlink(probe)
+    return Path(text)
 
 
 def write_bytes(path: str | os.PathLike, data: bytes | bytearray | memoryview | np.ndarray) -> Path:
@@ -78,8 +222,19 @@ def write_npz(path: str | os.PathLike, **arrays: np.ndarray) -> Path:
     return _atomic(path, lambda f: np.savez_compressed(f, **arrays), "wb")
 
 
+def format_number(value: float) -> str:
+    """The shortest text that reads back as exactly ``value`` (``12``, ``0.5``, ``1e-07``, ``nan``)."""
+    text = repr(float(value))
+    return text[:-2] if text.endswith(".0") else text
+
+
 def write_boxes(path: str | os.PathLike, boxes: np.ndarray) -> Path:
-    """Write an (n, 4) array of ``x,y,w,h`` boxes, one OTB line per frame."""
+    """Write an (n, 4) array of ``x,y,w,h`` boxes, one OTB line per frame.
+
+    Every value is written exactly (the shortest round-trip form), so a box
+    read back with :func:`nrmlc.data.read_box_file` equals the one written,
+    however small or large.
+    """
     boxes = np.asarray(boxes, dtype=np.float64)
-    lines = [",".join(f"{v:.4f}".rstrip("0").rstrip(".") for v in row) for row in boxes]
+    lines = [",".join(format_number(v) for v in row) for row in boxes]
     return write_text(path, "\n".join(lines) + "\n")

@@ -45,23 +45,29 @@ Which frames are evaluated, :func:`evaluate`
     values and ``w > 0`` and ``h > 0`` (rows of NaN, as ``read_box_file``
     returns for ``0,0,0,0`` lines, are skipped). Frame 0 is excluded when
     ``skip_first`` is true (the default), because the tracker is given that
-    box. If no frame is left, :class:`~nrmlc.errors.DataError` is raised.
+    box. If no frame is left, :class:`~nrmlc.errors.DataError` is raised, and
+    so it is for a ground-truth value beyond ``MAX_COORDINATE`` (1e9 px, as
+    ``read_box_file`` refuses it: such a box is a broken annotation, and its
+    area would overflow).
 
-Missing predictions
-    A predicted row with any non-finite value (the tracker gave no box), and
-    every ground-truth frame beyond the end of a *shorter* predicted array,
-    is a *missing prediction*: it is a failure, with overlap 0 and CLE
-    ``+inf``. It stays in the denominators of the success and precision
-    curves (so it lowers both) and in the mean overlap. Extra predicted rows
-    beyond the end of the ground truth are ignored. Their number is reported
-    as ``Evaluation.n_missing``.
+Missing and failed predictions
+    A predicted row with any non-finite value (NaN: the tracker gave no box;
+    ``inf``) or any value beyond ``MAX_COORDINATE`` in magnitude (an absurd
+    box), and every ground-truth frame beyond the end of a *shorter*
+    predicted array, is a *missing prediction*: a failed frame, with overlap
+    0 and CLE ``+inf``, so it fails every threshold of both curves. It stays
+    in the denominators of the success and precision curves (so it lowers
+    both) and in the mean overlap. Extra predicted rows beyond the end of the
+    ground truth are ignored. Their number is reported as
+    ``Evaluation.n_missing``. A finite predicted box of zero or negative size
+    is scored as it is: an empty box (overlap 0) with a centre.
 
 Summary numbers of an :class:`Evaluation`
     ``mean_overlap`` is the mean IoU over all evaluated frames (missing
     predictions count as 0). ``mean_center_error`` is the mean CLE over the
-    evaluated frames that have a finite prediction only (an infinite error
-    would make the mean meaningless); it is NaN when every prediction is
-    missing, in which case :meth:`Evaluation.as_dict` writes ``None``.
+    evaluated frames that have a prediction only (an infinite error would
+    make the mean meaningless); it is NaN when every prediction is missing,
+    in which case :meth:`Evaluation.as_dict` writes ``None``.
     ``success_auc`` and ``precision_20`` come from the curves above.
 """
 from __future__ import annotations
@@ -72,11 +78,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from nrmlc.data.boxes import read_box_file
+from nrmlc.data.boxes import MAX_COORDINATE, read_box_file
 from nrmlc.errors import DataError, ParameterError
 from nrmlc.geometry import usable_boxes
 
 __all__ = [
+    "MAX_COORDINATE",
     "SUCCESS_THRESHOLDS",
     "PRECISION_THRESHOLDS",
     "PRECISION_AT",
@@ -263,7 +270,7 @@ class Evaluation:
     n_frames : int
         Number of evaluated frames (annotated, minus frame 0 if skipped).
     n_missing : int
-        Evaluated frames without a finite predicted box (failures).
+        Evaluated frames without a usable predicted box (missing or failed predictions).
     mean_center_error : float
         Mean CLE in pixels over evaluated frames with a prediction (NaN if none).
     mean_overlap : float
@@ -320,12 +327,12 @@ def evaluate(predicted, groundtruth, skip_first: bool = True) -> Evaluation:
     ----------
     predicted : array_like, (m, 4)
         Tracker boxes ``x, y, w, h``, one row per frame starting at frame 0.
-        Rows with a non-finite value are missing predictions. If ``m`` is
-        smaller than ``n``, the missing rows are failures; extra rows are
-        ignored.
+        Rows with a non-finite value or a value beyond ``MAX_COORDINATE`` are
+        missing predictions (failed frames). If ``m`` is smaller than ``n``,
+        the missing rows are failures; extra rows are ignored.
     groundtruth : array_like, (n, 4)
-        Annotated boxes; rows with NaN or ``w <= 0`` or ``h <= 0`` are not
-        evaluated.
+        Annotated boxes; rows with a non-finite value or ``w <= 0`` or
+        ``h <= 0`` are not evaluated.
     skip_first : bool, default True
         Do not evaluate frame 0 (the initial box given to the tracker).
 
@@ -336,7 +343,8 @@ def evaluate(predicted, groundtruth, skip_first: bool = True) -> Evaluation:
     Raises
     ------
     DataError
-        When no frame is left to evaluate.
+        When no frame is left to evaluate, or a ground-truth value is beyond
+        ``MAX_COORDINATE``.
     ParameterError
         When an array is not of shape ``(k, 4)``.
     """
@@ -350,6 +358,11 @@ def evaluate(predicted, groundtruth, skip_first: bool = True) -> Evaluation:
     else:
         p = np.vstack([p, np.full((n - p.shape[0], 4), np.nan)])
 
+    with np.errstate(invalid="ignore"):
+        absurd = np.flatnonzero((np.abs(g) > MAX_COORDINATE).any(axis=1))
+    if absurd.size:
+        raise DataError(f"groundtruth row {absurd[0] + 1}: value beyond {MAX_COORDINATE:g} px "
+                        f"in {g[absurd[0]].tolist()}")
     annotated = usable_boxes(g)
     if skip_first and n > 0:
         annotated[0] = False
@@ -361,7 +374,8 @@ def evaluate(predicted, groundtruth, skip_first: bool = True) -> Evaluation:
         )
     g = g[frames]
     p = p[frames]
-    have = np.isfinite(p).all(axis=1)
+    with np.errstate(invalid="ignore"):
+        have = np.isfinite(p).all(axis=1) & (np.abs(p) <= MAX_COORDINATE).all(axis=1)
 
     iou = np.where(have, overlaps(np.where(have[:, None], p, 0.0), g), 0.0)
     cle = np.where(have, center_errors(np.where(have[:, None], p, 0.0), g), np.inf)
@@ -400,8 +414,8 @@ def evaluate_files(
     ----------
     result_path : path
         Tracker output, one ``x,y,w,h`` line per frame (read with
-        :func:`nrmlc.data.boxes.read_box_file`; ``0,0,0,0`` or NaN lines are
-        missing predictions).
+        :func:`nrmlc.data.boxes.read_box_file` with ``predictions=True``:
+        ``0,0,0,0``, NaN, infinite and absurd lines are missing predictions).
     groundtruth_path : path
         OTB ``groundtruth_rect.txt``.
     skip_first : bool, default True
@@ -416,7 +430,7 @@ def evaluate_files(
     DataError
         On an unreadable file, or when no frame is left to evaluate.
     """
-    predicted = read_box_file(result_path)
+    predicted = read_box_file(result_path, predictions=True)
     groundtruth = read_box_file(groundtruth_path)
     try:
         return evaluate(predicted, groundtruth, skip_first=skip_first)

@@ -48,25 +48,15 @@ def code_version() -> str:
         path = root / name
         files = sorted(path.rglob("*.py")) if path.is_dir() else [path]
         for file in files:
-            if file.name in ("cli.py", "video.py"):
-                continue
             digest.update(str(file.relative_to(root)).encode())
             digest.update(file.read_bytes())
     return digest.hexdigest()[:16]
 
 
 def sequence_identity(sequence) -> str:
-    """A string naming the sequence's content: its folder or its synthetic spec,
-    plus the initial box when it was overridden (``Sequence.with_init_box``)."""
-    spec = getattr(sequence, "spec", None)
-    if spec is not None:
-        identity = f"synthetic:{spec!r}"
-    else:
-        identity = f"folder:{os.path.abspath(str(sequence.path))}:{sequence.name}:{len(sequence)}"
-    override = getattr(sequence, "_init_box_override", None)
-    if override is not None:  # only then, so that the keys of ordinary runs stay as they were
-        identity += ":init_box=" + ",".join(repr(float(v)) for v in override)
-    return identity
+    """A string naming the sequence's content: :attr:`nrmlc.data.Sequence.identity`
+    (its folder or its synthetic spec, plus an overridden initial box)."""
+    return sequence.identity
 
 
 @dataclass(frozen=True)

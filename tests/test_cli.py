@@ -143,7 +143,7 @@ BAD_INPUT = {
     "negative-lambda": (_nothing, ["--lambda", "-1"], r"parameter lam: must be >= 0"),
     "negative-beta": (_nothing, ["--beta", "-0.1"], r"parameter beta: must be >= 0"),
     "negative-lambda-param": (_nothing, ["--param", "lam=-2"], r"parameter lam: must be >= 0"),
-    "zero-particles": (_nothing, ["--particles", "0"], r"parameter n_particles: must be >= 1"),
+    "zero-particles": (_nothing, ["--particles", "0"], r"parameter n_particles: must be (>= 1|in 1\.\.)"),
     "unknown-coding": (_nothing, ["--param", "coding=sparse"], r"parameter coding: unknown mode 'sparse'"),
     "param-no-equals": (_nothing, ["--param", "lam"], r"--param 'lam': expected name=value"),
     "param-unknown-name": (_nothing, ["--param", "lamda=1"], r"--param 'lamda=1': unknown parameter 'lamda'"),

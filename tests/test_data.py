@@ -73,11 +73,13 @@ def test_unannotated_rows_are_nan(tmp_path):
 
 # --------------------------------------------------------- OTB folders
 def test_frames_sorted_by_number_not_name(tmp_path):
-    folder = make_sequence_folder(tmp_path / "Seq", names=["10.png", "2.png", "1.png"])
+    names = [f"{k}.png" for k in (10, 2, 1, 3, 4, 5, 6, 7, 8, 9)]
+    folder = make_sequence_folder(tmp_path / "Seq", names=names)
     sequence = open_sequence(folder)
-    assert [p.name for p in sequence.image_paths] == ["1.png", "2.png", "10.png"]
-    # make_sequence_folder filled 10.png with 10, 2.png with 20, 1.png with 30.
-    assert [float(f[0, 0]) * 255 for f in sequence] == pytest.approx([30, 20, 10])
+    assert [p.name for p in sequence.image_paths] == [f"{k}.png" for k in range(1, 11)]
+    # make_sequence_folder filled the k-th name with 10 * k: 10.png with 10, 2.png with 20, 1.png with 30.
+    assert [float(f[0, 0]) * 255 for f in sequence][:3] == pytest.approx([30, 20, 40])
+    assert float(sequence.frame(9)[0, 0]) * 255 == pytest.approx(10)
 
 
 def test_sequence_interface(tmp_path):
@@ -317,7 +319,7 @@ def test_sparsepack_errors(tmp_path):
     with pytest.raises(DataError, match=r"datainfo.txt: says 80x60"):
         open_sequence(folder)
     (folder / "datainfo.txt").write_text("8 six 2")
-    with pytest.raises(DataError, match="datainfo.txt: expected 3 integers"):
+    with pytest.raises(DataError, match="datainfo.txt: expected 3 positive integers"):
         read_sparsepack_groundtruth(folder)
 
 

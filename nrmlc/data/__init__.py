@@ -9,7 +9,8 @@ Public API::
     write_otb_sequence(sequence, folder)
 """
 from nrmlc.data.boxes import read_box_file
-from nrmlc.data.sequence import Sequence, list_sequences, open_sequence
+from nrmlc.data.otb import list_sequences, open_sequence
+from nrmlc.data.sequence import Sequence
 from nrmlc.data.sparsepack import read_sparsepack_groundtruth
 from nrmlc.data.synthetic import SyntheticSequence, SyntheticSpec, synthetic_suite, write_otb_sequence
 

@@ -1,21 +1,10 @@
-"""Image sequences with ground truth: the OTB folder layout and its variants.
+"""The :class:`Sequence`: a video with per-frame ground-truth boxes, frames read lazily.
 
-OTB layout::
-
-    Folder/
-        img/0001.jpg ...           frames (jpg, jpeg, png or bmp)
-        groundtruth_rect.txt       one x,y,w,h line per frame (1-based)
-
-Variants handled here:
-
-- several targets: ``groundtruth_rect.1.txt``, ``groundtruth_rect.2.txt``, ...
-  give one sequence per target, named ``Folder-1``, ``Folder-2`` (OTB's own
-  convention, e.g. Jogging-1, Jogging-2);
-- sparse-tracker packs (``datainfo.txt`` + ``*_gt.mat``, see
-  :mod:`nrmlc.data.sparsepack`): the mat file is the fallback when
-  ``groundtruth_rect.txt`` is absent;
-- no ground truth at all: every box is NaN, and the caller must give the
-  initial box (``init_box=`` or :meth:`Sequence.with_init_box`).
+Readers of folder layouts build one: :mod:`nrmlc.data.otb` (OTB folders, with
+:mod:`nrmlc.data.sparsepack` for the sparse-tracker packs' ground truth);
+:class:`nrmlc.data.synthetic.SyntheticSequence` renders its frames instead.
+With no ground truth every box is NaN, and the caller must give the initial
+box (``init_box=`` or :meth:`Sequence.with_init_box`).
 
 Frames are read on demand, never cached, so a long sequence costs no memory.
 """
@@ -23,7 +12,6 @@ from __future__ import annotations
 
 import copy
 import os
-import re
 import warnings
 from pathlib import Path
 from typing import Iterator, Sequence as SequenceType
@@ -31,23 +19,11 @@ from typing import Iterator, Sequence as SequenceType
 import cv2
 import numpy as np
 
-from nrmlc.data.boxes import read_box_file
 from nrmlc.data.image import to_gray_float32
-from nrmlc.data.sparsepack import (
-    DATAINFO_NAME,
-    find_groundtruth_mat,
-    is_sparsepack,
-    read_datainfo,
-    read_sparsepack_groundtruth,
-)
 from nrmlc.errors import DataError, ParameterError
 
-IMAGE_FOLDER = "img"
-IMAGE_EXTENSIONS = (".jpg", ".jpeg", ".png", ".bmp")
-GROUNDTRUTH_NAME = "groundtruth_rect.txt"
-_TARGET_GROUNDTRUTH = re.compile(r"^groundtruth_rect\.(\d+)\.txt$")
-_TARGET_SUFFIX = re.compile(r"^(.+)-(\d+)$")
-_DIGITS = re.compile(r"\d+")
+#: Smallest frame (pixels per side) the tracker accepts.
+MIN_FRAME_SIDE = 2
 
 
 class Sequence:
@@ -114,6 +90,23 @@ class Sequence:
     def _where(self) -> str:
         """The folder (or the name) used in messages."""
         return str(self.path) if self.path is not None else self.name
+
+    @property
+    def identity(self) -> str:
+        """What the sequence holds, as a string for cache keys.
+
+        ``folder:<absolute folder>:<name>:<n_frames>`` for a folder (the
+        synthetic subclass returns its spec instead), plus
+        ``:init_box=x,y,w,h`` when the initial box was overridden, so that
+        runs from another initial box never share a key with ordinary ones.
+        """
+        identity = self._content_identity()
+        if self._init_box_override is not None:
+            identity += ":init_box=" + ",".join(repr(float(v)) for v in self._init_box_override)
+        return identity
+
+    def _content_identity(self) -> str:
+        return f"folder:{os.path.abspath(str(self.path))}:{self.name}:{len(self)}"
 
     @property
     def frame_size(self) -> tuple[int, int]:
@@ -213,6 +206,11 @@ class Sequence:
             )
         if image.ndim == 3 and image.shape[2] == 2:  # gray + alpha: the alpha is of no use here
             image = np.ascontiguousarray(image[:, :, 0])
+        if min(image.shape[:2]) < MIN_FRAME_SIDE:
+            raise DataError(
+                f"{self._describe_frame(index)}: image is {image.shape[0]}x{image.shape[1]} (HxW); "
+                f"frames must be at least {MIN_FRAME_SIDE}x{MIN_FRAME_SIDE} px"
+            )
         if self._frame_size is not None and image.shape[:2] != self._frame_size:
             height, width = self._frame_size
             raise DataError(
@@ -282,170 +280,10 @@ def _jpeg_is_complete(data: bytes) -> bool:
 
 
 def _check_init_box(box: SequenceType[float], where: str) -> np.ndarray:
-    values = np.asarray(box, dtype=np.float64).ravel()
-    if values.shape != (4,) or not np.isfinite(values).all() or values[2] <= 0 or values[3] <= 0:
+    try:
+        values = np.asarray(box, dtype=np.float64).ravel()
+    except (TypeError, ValueError):
+        values = np.empty(0)
+    if isinstance(box, (str, bytes, dict)) or values.shape != (4,) or not np.isfinite(values).all() or values[2] <= 0 or values[3] <= 0:
         raise ParameterError(f"{where}: initial box must be 4 finite numbers x,y,w,h with w,h > 0, got {box!r}")
     return values
-
-
-# ------------------------------------------------------------------ layouts
-def _frame_sort_key(path: Path) -> tuple[int, int, str]:
-    """Sort by the last integer in the file name (``2.png`` before ``10.png``)."""
-    numbers = _DIGITS.findall(path.stem)
-    if numbers:
-        return (0, int(numbers[-1]), path.name)
-    return (1, 0, path.name)  # names without a number go last, alphabetically
-
-
-def find_images(folder: str | os.PathLike) -> list[Path]:
-    """Image files of ``folder/img`` sorted by frame number.
-
-    Raises
-    ------
-    DataError
-        If there is no ``img`` folder or it holds no jpg/jpeg/png/bmp file.
-    """
-    image_folder = Path(folder) / IMAGE_FOLDER
-    if not image_folder.is_dir():
-        raise DataError(f"{folder}: no '{IMAGE_FOLDER}' folder with the frames")
-    images = [
-        p for p in image_folder.iterdir()
-        if p.suffix.lower() in IMAGE_EXTENSIONS and not p.name.startswith(".") and p.is_file()
-    ]
-    if not images:
-        raise DataError(f"{image_folder}: no images ({', '.join(IMAGE_EXTENSIONS)})")
-    return sorted(images, key=_frame_sort_key)
-
-
-def find_target_groundtruths(folder: str | os.PathLike) -> dict[int, Path]:
-    """Per-target ground-truth files ``groundtruth_rect.<k>.txt``, keyed by ``k``."""
-    found = {}
-    for path in Path(folder).iterdir():
-        match = _TARGET_GROUNDTRUTH.match(path.name)
-        if match and path.is_file():
-            found[int(match.group(1))] = path
-    return dict(sorted(found.items()))
-
-
-def _split_target_name(path: Path) -> tuple[Path, int] | None:
-    """``root/Jogging-2`` -> ``(root/Jogging, 2)`` when that folder has target 2."""
-    match = _TARGET_SUFFIX.match(path.name)
-    if not match:
-        return None
-    folder = path.with_name(match.group(1))
-    target = int(match.group(2))
-    if folder.is_dir() and target in find_target_groundtruths(folder):
-        return folder, target
-    return None
-
-
-def open_sequence(
-    path: str | os.PathLike,
-    target: int | None = None,
-    init_box: SequenceType[float] | None = None,
-) -> Sequence:
-    """Open a sequence folder.
-
-    Parameters
-    ----------
-    path : the sequence folder; a name like ``root/Jogging-2`` (no such
-        folder) means target 2 of ``root/Jogging``.
-    target : for multi-target folders, which target (1, 2, ...); default
-        the first one.
-    init_box : (4,) 1-based ``x, y, w, h`` overriding the first box (needed
-        when the sequence has no ground truth or frame 1 is unannotated).
-
-    Returns
-    -------
-    Sequence
-
-    Raises
-    ------
-    DataError
-        Folder missing or not a folder, no images, first image unreadable,
-        unknown target, malformed ground truth (the message names the file).
-    """
-    folder = Path(path)
-    if not folder.exists():
-        split = _split_target_name(folder)
-        if split is None:
-            raise DataError(f"{folder}: sequence folder not found")
-        folder, named_target = split
-        if target is not None and target != named_target:
-            raise DataError(f"{path}: the name says target {named_target} but target={target} was given")
-        target = named_target
-    if not folder.is_dir():
-        raise DataError(f"{folder}: not a folder")
-    images = find_images(folder)
-
-    name = folder.name
-    groundtruth_path: Path | None = None
-    targets = find_target_groundtruths(folder)
-    if target is not None:
-        if target not in targets:
-            available = ", ".join(str(k) for k in targets) or "none (single-target folder)"
-            raise DataError(f"{folder}: no groundtruth_rect.{target}.txt (targets: {available})")
-        groundtruth_path = targets[target]
-        name = f"{folder.name}-{target}"
-    elif (folder / GROUNDTRUTH_NAME).is_file():
-        groundtruth_path = folder / GROUNDTRUTH_NAME
-    elif targets:
-        first_target = next(iter(targets))
-        groundtruth_path = targets[first_target]
-        name = f"{folder.name}-{first_target}"
-
-    from_sparsepack = groundtruth_path is None and is_sparsepack(folder)
-    if groundtruth_path is not None:
-        groundtruth = read_box_file(groundtruth_path)
-    elif from_sparsepack:
-        groundtruth = read_sparsepack_groundtruth(folder)
-        groundtruth_path = find_groundtruth_mat(folder)
-    else:
-        groundtruth = None
-
-    sequence = Sequence(
-        name, images, groundtruth, path=folder, groundtruth_path=groundtruth_path, init_box=init_box
-    )
-    if from_sparsepack:
-        # The mat boxes are in the pixel frame datainfo.txt describes: check it is the images'.
-        width, height, _ = read_datainfo(folder)
-        if (height, width) != sequence.frame_size:
-            raise DataError(
-                f"{folder / DATAINFO_NAME}: says {width}x{height} (WxH) but the frames are "
-                f"{sequence.frame_size[1]}x{sequence.frame_size[0]}"
-            )
-    return sequence
-
-
-def list_sequences(root: str | os.PathLike) -> list[Sequence]:
-    """Every sequence under ``root``, sorted by name.
-
-    A subfolder counts as a sequence when it has an ``img`` folder; other
-    subfolders are skipped silently. Multi-target folders give one sequence
-    per target (``Jogging-1``, ``Jogging-2``).
-
-    Returns
-    -------
-    list of Sequence
-
-    Raises
-    ------
-    DataError
-        If ``root`` is missing or not a folder, if it holds no sequence, or
-        if a sequence folder is broken (the message names the file).
-    """
-    root = Path(root)
-    if not root.is_dir():
-        raise DataError(f"{root}: data root {'is not a folder' if root.exists() else 'not found'}")
-    sequences = []
-    for folder in sorted(p for p in root.iterdir() if p.is_dir()):
-        if not (folder / IMAGE_FOLDER).is_dir():
-            continue
-        targets = find_target_groundtruths(folder)
-        if targets and not (folder / GROUNDTRUTH_NAME).is_file():
-            sequences.extend(open_sequence(folder, target) for target in targets)
-        else:
-            sequences.append(open_sequence(folder))
-    if not sequences:
-        raise DataError(f"{root}: no sequences (subfolders with an '{IMAGE_FOLDER}' folder)")
-    return sorted(sequences, key=lambda s: s.name)

@@ -21,6 +21,7 @@ frames without a keyframe are unannotated (NaN rows).
 from __future__ import annotations
 
 import os
+import re
 from pathlib import Path
 
 import numpy as np
@@ -29,6 +30,12 @@ from nrmlc.errors import DataError
 
 DATAINFO_NAME = "datainfo.txt"
 GROUNDTRUTH_MAT_PATTERN = "*_gt.mat"
+#: Bounds on datainfo.txt beyond which the file is taken as corrupt (a frame
+#: count of 1e12 would otherwise allocate its boxes).
+MAX_FRAMES = 10_000_000
+MAX_FRAME_SIDE = 100_000
+# An integer, possibly written as a float with a zero fraction ("320.0", as MATLAB may).
+_INTEGER = re.compile(r"[0-9]+(\.0*)?")
 
 
 def read_datainfo(folder: str | os.PathLike) -> tuple[int, int, int]:
@@ -46,13 +53,15 @@ def read_datainfo(folder: str | os.PathLike) -> tuple[int, int, int]:
     if not path.is_file():
         raise DataError(f"{path}: datainfo file not found")
     fields = path.read_text(encoding="utf-8", errors="replace").split()
-    try:
-        values = [int(float(f)) for f in fields]
-    except ValueError:
-        raise DataError(f"{path}: expected 3 integers (width height n_frames), got {fields}") from None
-    if len(values) != 3 or min(values) <= 0:
+    if len(fields) != 3 or not all(_INTEGER.fullmatch(f) for f in fields):
+        raise DataError(f"{path}: expected 3 positive integers (width height n_frames), got {fields}")
+    values = [int(float(f)) for f in fields]
+    if min(values) <= 0:
         raise DataError(f"{path}: expected 3 positive integers (width height n_frames), got {fields}")
     width, height, n_frames = values
+    if max(width, height) > MAX_FRAME_SIDE or n_frames > MAX_FRAMES:
+        raise DataError(f"{path}: implausible size {width}x{height} or frame count {n_frames} "
+                        f"(at most {MAX_FRAME_SIDE} px per side and {MAX_FRAMES} frames)")
     return width, height, n_frames
 
 
@@ -92,12 +101,14 @@ def corners_to_box(corners: np.ndarray) -> np.ndarray:
     return np.array([xs.min(), ys.min(), xs.max() - xs.min(), ys.max() - ys.min()])
 
 
-def read_sparsepack_groundtruth(folder: str | os.PathLike) -> np.ndarray:
+def read_sparsepack_groundtruth(folder: str | os.PathLike, n_images: int | None = None) -> np.ndarray:
     """Read the keyframe ground truth of a sparse-tracker pack.
 
     Parameters
     ----------
     folder : sequence folder holding ``datainfo.txt`` and one ``*_gt.mat``.
+    n_images : the number of frames in ``img/``, when known: ``datainfo.txt``
+        must give the same count.
 
     Returns
     -------
@@ -109,11 +120,15 @@ def read_sparsepack_groundtruth(folder: str | os.PathLike) -> np.ndarray:
     ------
     DataError
         On a missing/ambiguous/unreadable mat file, missing variables, a
-        keyframe index outside ``1..n_frames`` or a malformed corner array.
+        keyframe index that is not an integer in ``1..n_frames`` or appears
+        twice, a corner array that is malformed or holds text, NaN or
+        infinite values, or a frame count that disagrees with ``n_images``.
     """
     import scipy.io  # deferred: scipy.io is slow to import and rarely needed
 
     _, _, n_frames = read_datainfo(folder)
+    if n_images is not None and n_frames != n_images:
+        raise DataError(f"{Path(folder) / DATAINFO_NAME}: says {n_frames} frames but the img folder holds {n_images}")
     mat_path = find_groundtruth_mat(folder)
     if mat_path is None:
         raise DataError(f"{folder}: no {GROUNDTRUTH_MAT_PATTERN} ground-truth file")
@@ -132,16 +147,28 @@ def read_sparsepack_groundtruth(folder: str | os.PathLike) -> np.ndarray:
             f"gtCornersAll has {len(corner_cells)}"
         )
 
+    if frame_indices.dtype.kind not in "biuf":
+        raise DataError(f"{mat_path}: frameIndex must hold numbers, got {frame_indices.dtype}")
     boxes = np.full((n_frames, 4), np.nan)
-    for frame_index, corners in zip(frame_indices, corner_cells):
-        frame_index = int(frame_index)
+    seen = set()
+    for raw_index, corners in zip(frame_indices, corner_cells):
+        if not np.isfinite(raw_index) or raw_index != np.round(raw_index):
+            raise DataError(f"{mat_path}: frameIndex {raw_index!r} is not an integer")
+        frame_index = int(raw_index)
         if not 1 <= frame_index <= n_frames:
             raise DataError(f"{mat_path}: keyframe {frame_index} outside 1..{n_frames}")
-        corners = np.asarray(corners, dtype=np.float64)
+        if frame_index in seen:
+            raise DataError(f"{mat_path}: keyframe {frame_index} appears twice in frameIndex")
+        seen.add(frame_index)
+        corners = np.asarray(corners)
+        if corners.dtype.kind not in "biuf":
+            raise DataError(f"{mat_path}: keyframe {frame_index}: corners must be numbers, got {corners.dtype}")
+        corners = corners.astype(np.float64)
         if corners.ndim != 2 or corners.shape[0] != 2 or corners.shape[1] < 3:
             raise DataError(
                 f"{mat_path}: keyframe {frame_index}: corners must be a 2 x m array, got shape {corners.shape}"
             )
-        if np.isfinite(corners).all():
-            boxes[frame_index - 1] = corners_to_box(corners)
+        if not np.isfinite(corners).all():
+            raise DataError(f"{mat_path}: keyframe {frame_index}: NaN or infinite corner coordinates")
+        boxes[frame_index - 1] = corners_to_box(corners)
     return boxes

@@ -39,7 +39,8 @@ import cv2
 import numpy as np
 
 from nrmlc.config import PATCH_SIZE
-from nrmlc.data.sequence import IMAGE_EXTENSIONS, IMAGE_FOLDER, GROUNDTRUTH_NAME, Sequence
+from nrmlc.data.otb import GROUNDTRUTH_NAME, IMAGE_EXTENSIONS, IMAGE_FOLDER
+from nrmlc.data.sequence import Sequence
 from nrmlc.errors import DataError, ParameterError
 from nrmlc.io import write_bytes, write_boxes
 
@@ -52,6 +53,10 @@ _TEXELS_PER_PIXEL = 2.0
 
 #: Keep the target this many pixels inside the frame at its largest extent.
 _BORDER_MARGIN = 2.0
+#: Bounds that keep a spec's arrays (per-frame states, static layers) in memory.
+MAX_FRAMES = 1_000_000
+MAX_SIDE = 8192
+MAX_SEQUENCES = 1000
 
 
 @dataclass(frozen=True)
@@ -104,8 +109,9 @@ class SyntheticSpec:
     def __post_init__(self) -> None:
         checks = [
             (self.seed >= 0, "seed must be >= 0"),
-            (self.n_frames >= 2, "n_frames must be >= 2"),
-            (self.frame_height >= 16 and self.frame_width >= 16, "frame size must be at least 16x16"),
+            (2 <= self.n_frames <= MAX_FRAMES, f"n_frames must be in 2..{MAX_FRAMES}"),
+            (16 <= self.frame_height <= MAX_SIDE and 16 <= self.frame_width <= MAX_SIDE,
+             f"frame size must be 16x16 to {MAX_SIDE}x{MAX_SIDE}"),
             (self.target_width >= 4 and self.target_height >= 4, "target size must be at least 4x4 px"),
             (self.translation_amplitude_x >= 0 and self.translation_amplitude_y >= 0,
              "translation amplitudes must be >= 0"),
@@ -278,6 +284,9 @@ class SyntheticSequence(Sequence):
 
         super().__init__(spec.name, None, groundtruth, n_frames=n_frames, init_box=init_box)
 
+    def _content_identity(self) -> str:
+        return f"synthetic:{self.spec!r}"
+
     def __reduce__(self):
         # Pickle the spec, not the rendered layers: they are rebuilt identically.
         return (_rebuild_synthetic, (self.spec, self._init_box_override))
@@ -410,6 +419,10 @@ def synthetic_suite(
     -------
     list of SyntheticSequence
     """
+    for name, value, low, high in (("n_sequences", n_sequences, 1, MAX_SEQUENCES), ("n_frames", n_frames, 2, MAX_FRAMES),
+                                   ("seed", seed, 0, 2**63 - 1)):
+        if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or not low <= value <= high:
+            raise ParameterError(f"synthetic_suite: {name} must be an integer in {low}..{high}, got {value!r}")
     height, width = (int(v) for v in size)
     zoom = min(height / 240.0, width / 320.0)
     sequences = []
@@ -436,7 +449,7 @@ def write_otb_sequence(sequence: Sequence, folder: str | os.PathLike) -> Path:
 
     Writes ``folder/img/0001.png, ...`` (the frames as stored: gray or colour,
     8 or 16 bit) and ``folder/groundtruth_rect.txt`` (unannotated frames as
-    ``0,0,0,0``; 4 decimals), each file atomically. Reading the folder back
+    ``0,0,0,0``; exact values), each file atomically. Reading the folder back
     with :func:`~nrmlc.data.open_sequence` gives identical frames.
 
     Returns

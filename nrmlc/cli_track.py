@@ -1,10 +1,22 @@
-"""The ``track`` subcommand of ``python -m nrmlc``."""
+"""The ``track`` subcommand of ``python -m nrmlc``: track a sequence folder, write the boxes.
+
+Every output (``--out``, ``--video``, ``--diagnostics``) is checked before
+tracking starts (:func:`nrmlc.io.check_output`: writable, a regular file or
+nothing yet, not an input of the run, not inside the frames' folder) and
+written atomically once the run has succeeded; a failed or interrupted run
+leaves earlier files as they were.
+"""
 from __future__ import annotations
 
 import argparse
+import os
+import re
 import sys
 
 import numpy as np
+
+# Names that would become part of a sequence folder if an output took them.
+_SEQUENCE_FILE = re.compile(r"^(groundtruth_rect(\.\d+)?\.txt|datainfo\.txt|.*_gt\.mat)$", re.IGNORECASE)
 
 
 def add_track_command(commands) -> None:
@@ -18,13 +30,41 @@ def add_track_command(commands) -> None:
     track.add_argument("--beta", type=float, help="l2 weight on the dictionary weights (default 0.1)")
     track.add_argument("--frames", type=int, help="track only the first N frames")
     track.add_argument("--target", type=int, help="target number in a multi-target folder (groundtruth_rect.N.txt)")
-    track.add_argument("--init-box", metavar="X,Y,W,H", help="initial box (default: the first ground-truth box)")
+    track.add_argument("--init-box", metavar="X,Y,W,H",
+                       help="initial box (default: the first ground-truth box); may start with a minus sign")
     track.add_argument("--param", action="append", default=[], metavar="NAME=VALUE",
                        help="any other tracker parameter, e.g. --param occlusion_detection=false (repeatable)")
     track.add_argument("--threads", type=int, help="threads for numba/OpenBLAS/OpenCV (default: all cores)")
-    track.add_argument("--video", metavar="OUT.mp4", help="also write the frames with the tracked box drawn")
+    track.add_argument("--video", metavar="OUT.mp4", help="also write the frames with the tracked box drawn "
+                       "(.mp4, .m4v, .mov, .avi or .mkv)")
     track.add_argument("--diagnostics", metavar="DIAG.npz", help="also save per-frame diagnostics")
     track.set_defaults(run=run_track)
+
+
+def check_outputs(args: argparse.Namespace, sequence) -> None:
+    """Refuse, before tracking, outputs that cannot be written or would replace an input or each other."""
+    from nrmlc import io
+    from nrmlc.errors import ParameterError
+
+    inputs = list(sequence.image_paths or [])
+    if sequence.groundtruth_path is not None:
+        inputs.append(sequence.groundtruth_path)
+    if sequence.path is not None:
+        inputs.append(sequence.path / "datainfo.txt")
+    folders = {path.parent for path in sequence.image_paths or []}
+    outputs = {option: path for option, path in (("--out", args.out), ("--video", args.video),
+                                                 ("--diagnostics", args.diagnostics)) if path is not None}
+    seen = {}
+    for option, path in outputs.items():
+        io.check_output(path, option, inputs=inputs, input_folders=folders)
+        target = os.path.realpath(path)
+        if sequence.path is not None and os.path.dirname(target) == os.path.realpath(sequence.path) \
+                and _SEQUENCE_FILE.match(os.path.basename(target)):
+            raise ParameterError(f"{option} {path}: would become part of the sequence folder {sequence.path} "
+                                 f"(a ground-truth or pack file name); write it elsewhere")
+        if target in seen:
+            raise ParameterError(f"{option} {path}: the same file as {seen[target]}; give each output its own file")
+        seen[target] = f"{option} {path}"
 
 
 def run_track(args: argparse.Namespace) -> int:
@@ -44,27 +84,37 @@ def run_track(args: argparse.Namespace) -> int:
     params = TrackerParams().replace(**overrides)
     if args.frames is not None and args.frames < 1:
         raise ParameterError(f"--frames must be >= 1, got {args.frames}")
+    if args.target is not None and args.target < 1:
+        raise ParameterError(f"--target must be >= 1, got {args.target}")
+    if args.video:
+        from nrmlc.video import check_video_path
+
+        check_video_path(args.video)
     set_threads(args.threads)
     sequence = open_sequence(args.sequence, target=args.target)
     init_box = None
     if args.init_box:
         init_box = np.array(parse_box_line(args.init_box, "--init-box"))
+    check_outputs(args, sequence)
     writer = None
     on_frame = None
     if args.video:
-        from nrmlc.tracker.video import BoxVideoWriter
+        from nrmlc.video import BoxVideoWriter
 
         writer = BoxVideoWriter(args.video, sequence)
         on_frame = writer.on_frame
     try:
         result = track_sequence(sequence, params, seed=args.seed, n_frames=args.frames, init_box=init_box,
                                 progress=True, on_frame=on_frame)
-    finally:
+        io.write_boxes(args.out, result.boxes)
+        if args.diagnostics:
+            io.write_npz(args.diagnostics, **result.to_arrays())
         if writer is not None:
             writer.close()
-    io.write_boxes(args.out, result.boxes)
-    if args.diagnostics:
-        io.write_npz(args.diagnostics, **result.to_arrays())
+    except BaseException:
+        if writer is not None:
+            writer.abort()
+        raise
     summary = (f"{sequence.name}: {len(result.boxes)} frames, {result.fps_tracking:.1f} fps tracking "
                f"({result.fps_total:.1f} fps with decoding)")
     annotated = sequence.groundtruth[: len(result.boxes)]

@@ -1,0 +1,281 @@
+"""Reading OTB sequence folders.
+
+Layout::
+
+    Folder/
+        img/0001.jpg ...           frames (jpg, jpeg, png or bmp)
+        groundtruth_rect.txt       one x,y,w,h line per frame (1-based)
+
+Variants handled here:
+
+- several targets: ``groundtruth_rect.1.txt``, ``groundtruth_rect.2.txt``, ...
+  give one sequence per target, named ``Folder-1``, ``Folder-2`` (OTB's own
+  convention, e.g. Jogging-1, Jogging-2);
+- sparse-tracker packs (``datainfo.txt`` + ``*_gt.mat``, see
+  :mod:`nrmlc.data.sparsepack`): the mat file is the fallback when
+  ``groundtruth_rect.txt`` is absent;
+- no ground truth at all: every box is NaN, and the caller must give the
+  initial box.
+
+Frame order
+    Frames are ordered by their frame number wherever it sits in the name
+    (``0001.jpg``, ``img12.png``, ``1_cam0.png``): every name must follow one
+    pattern in which exactly one number changes from file to file, or several
+    that all give the same order. The numbers must be consecutive (any
+    start). Names that follow different patterns, two files with the same
+    number (``0003.png`` and ``0003.jpg``), a gap in the numbering, and
+    broken, looping or non-regular entries are refused with a
+    :class:`~nrmlc.errors.DataError` naming the files: each of them would
+    silently shift the ground truth against the frames. Names starting with
+    a dot are ignored.
+"""
+from __future__ import annotations
+
+import errno
+import os
+import re
+import stat
+from pathlib import Path
+from typing import Sequence as SequenceType
+
+import numpy as np
+
+from nrmlc.data.boxes import read_box_file
+from nrmlc.data.sequence import Sequence
+from nrmlc.data.sparsepack import (
+    DATAINFO_NAME,
+    find_groundtruth_mat,
+    is_sparsepack,
+    read_datainfo,
+    read_sparsepack_groundtruth,
+)
+from nrmlc.errors import DataError
+
+IMAGE_FOLDER = "img"
+IMAGE_EXTENSIONS = (".jpg", ".jpeg", ".png", ".bmp")
+GROUNDTRUTH_NAME = "groundtruth_rect.txt"
+_TARGET_GROUNDTRUTH = re.compile(r"^groundtruth_rect\.(\d+)\.txt$")
+_TARGET_SUFFIX = re.compile(r"^(.+)-(\d+)$")
+_NUMBER = re.compile(r"(\d+)")
+
+
+def _check_regular(path: Path) -> None:
+    """Refuse a broken or looping symlink and anything that is not a regular file."""
+    try:
+        mode = os.stat(path).st_mode
+    except OSError as exc:
+        if exc.errno == errno.ELOOP:
+            raise DataError(f"{path}: symbolic link loop") from None
+        if exc.errno == errno.ENOENT and path.is_symlink():
+            raise DataError(f"{path}: broken symbolic link (its target {os.readlink(path)!r} does not exist)") from None
+        raise DataError(f"{path}: cannot read ({exc.strerror or exc})") from None
+    if not stat.S_ISREG(mode):
+        raise DataError(f"{path}: not a regular file")
+
+
+def order_frames(images: SequenceType[Path]) -> list[Path]:
+    """Sort image files by frame number, refusing sets whose order is not certain.
+
+    Parameters
+    ----------
+    images : paths of the frames of one folder, in any order.
+
+    Returns
+    -------
+    list of Path, in frame order.
+
+    Raises
+    ------
+    DataError
+        Names that follow several patterns, several changing numbers that
+        disagree on the order, two files with the same number, or a gap in
+        the numbering (the message names the files).
+    """
+    images = sorted(images, key=lambda p: p.name)
+    if len(images) <= 1:
+        return list(images)
+    folder = images[0].parent
+    pieces = {path: _NUMBER.split(path.stem) for path in images}
+    patterns: dict[tuple[str, ...], list[Path]] = {}
+    for path, parts in pieces.items():
+        patterns.setdefault(tuple(parts[0::2]), []).append(path)
+    if len(patterns) > 1:
+        first, second = (group[0].name for group in list(patterns.values())[:2])
+        raise DataError(f"{folder}: frame names follow different patterns ({first}, {second}, ...); "
+                        f"cannot tell the frame order: name every frame like the others, with one frame number")
+    numbers = np.array([[int(v) for v in pieces[path][1::2]] for path in images], dtype=object).reshape(len(images), -1)
+    varying = [column for column in range(numbers.shape[1]) if len(set(numbers[:, column])) > 1]
+    if not varying:
+        raise DataError(f"{folder}: {images[0].name} and {images[1].name} have the same frame number "
+                        f"(or none); keep one")
+    orders = [sorted(range(len(images)), key=lambda i, c=column: numbers[i, c]) for column in varying]
+    if any(order != orders[0] for order in orders[1:]):
+        raise DataError(f"{folder}: several numbers change from name to name and disagree on the order "
+                        f"(e.g. {images[0].name}, {images[1].name}); cannot tell the frame order")
+    column = varying[0]
+    ordered = [images[i] for i in orders[0]]
+    frame_numbers = [int(numbers[i, column]) for i in orders[0]]
+    for previous, current, a, b in zip(frame_numbers, frame_numbers[1:], ordered, ordered[1:]):
+        if current == previous:
+            raise DataError(f"{folder}: {a.name} and {b.name} have the same frame number {current}; keep one")
+        if current != previous + 1:
+            missing = f"frame {previous + 1}" if current == previous + 2 else f"frames {previous + 1}-{current - 1}"
+            raise DataError(f"{folder}: frame numbers jump from {a.name} to {b.name} ({missing} missing); "
+                            f"the ground truth would be shifted against the frames")
+    return ordered
+
+
+def find_images(folder: str | os.PathLike) -> list[Path]:
+    """Image files of ``folder/img`` in frame order (see the module docstring).
+
+    Raises
+    ------
+    DataError
+        If there is no ``img`` folder, it holds no jpg/jpeg/png/bmp file, an
+        image entry is a broken or looping link or not a regular file, or the
+        frame order is not certain (:func:`order_frames`).
+    """
+    image_folder = Path(folder) / IMAGE_FOLDER
+    if not image_folder.is_dir():
+        raise DataError(f"{folder}: no '{IMAGE_FOLDER}' folder with the frames")
+    images = sorted(
+        p for p in image_folder.iterdir() if p.suffix.lower() in IMAGE_EXTENSIONS and not p.name.startswith(".")
+    )
+    if not images:
+        raise DataError(f"{image_folder}: no images ({', '.join(IMAGE_EXTENSIONS)})")
+    for image in images:
+        _check_regular(image)
+    return order_frames(images)
+
+def find_target_groundtruths(folder: str | os.PathLike) -> dict[int, Path]:
+    """Per-target ground-truth files ``groundtruth_rect.<k>.txt``, keyed by ``k``."""
+    found = {}
+    for path in Path(folder).iterdir():
+        match = _TARGET_GROUNDTRUTH.match(path.name)
+        if match and path.is_file():
+            found[int(match.group(1))] = path
+    return dict(sorted(found.items()))
+
+
+def _split_target_name(path: Path) -> tuple[Path, int] | None:
+    """``root/Jogging-2`` -> ``(root/Jogging, 2)`` when that folder has target 2."""
+    match = _TARGET_SUFFIX.match(path.name)
+    if not match:
+        return None
+    folder = path.with_name(match.group(1))
+    target = int(match.group(2))
+    if folder.is_dir() and target in find_target_groundtruths(folder):
+        return folder, target
+    return None
+
+
+def open_sequence(
+    path: str | os.PathLike,
+    target: int | None = None,
+    init_box: SequenceType[float] | None = None,
+) -> Sequence:
+    """Open a sequence folder.
+
+    Parameters
+    ----------
+    path : the sequence folder; a name like ``root/Jogging-2`` (no such
+        folder) means target 2 of ``root/Jogging``.
+    target : for multi-target folders, which target (1, 2, ...); default
+        the first one.
+    init_box : (4,) 1-based ``x, y, w, h`` overriding the first box (needed
+        when the sequence has no ground truth or frame 1 is unannotated).
+
+    Returns
+    -------
+    Sequence
+
+    Raises
+    ------
+    DataError
+        Folder missing or not a folder, no images, first image unreadable,
+        unknown target, malformed ground truth (the message names the file).
+    """
+    folder = Path(path)
+    if not folder.exists():
+        split = _split_target_name(folder)
+        if split is None:
+            raise DataError(f"{folder}: sequence folder not found")
+        folder, named_target = split
+        if target is not None and target != named_target:
+            raise DataError(f"{path}: the name says target {named_target} but target={target} was given")
+        target = named_target
+    if not folder.is_dir():
+        raise DataError(f"{folder}: not a folder")
+    images = find_images(folder)
+
+    name = folder.name
+    groundtruth_path: Path | None = None
+    targets = find_target_groundtruths(folder)
+    if target is not None:
+        if target not in targets:
+            available = ", ".join(str(k) for k in targets) or "none (single-target folder)"
+            raise DataError(f"{folder}: no groundtruth_rect.{target}.txt (targets: {available})")
+        groundtruth_path = targets[target]
+        name = f"{folder.name}-{target}"
+    elif (folder / GROUNDTRUTH_NAME).is_file():
+        groundtruth_path = folder / GROUNDTRUTH_NAME
+    elif targets:
+        first_target = next(iter(targets))
+        groundtruth_path = targets[first_target]
+        name = f"{folder.name}-{first_target}"
+
+    from_sparsepack = groundtruth_path is None and is_sparsepack(folder)
+    if groundtruth_path is not None:
+        groundtruth = read_box_file(groundtruth_path)
+    elif from_sparsepack:
+        groundtruth = read_sparsepack_groundtruth(folder, n_images=len(images))
+        groundtruth_path = find_groundtruth_mat(folder)
+    else:
+        groundtruth = None
+
+    sequence = Sequence(
+        name, images, groundtruth, path=folder, groundtruth_path=groundtruth_path, init_box=init_box
+    )
+    if from_sparsepack:
+        # The mat boxes are in the pixel frame datainfo.txt describes: check it is the images'.
+        width, height, _ = read_datainfo(folder)
+        if (height, width) != sequence.frame_size:
+            raise DataError(
+                f"{folder / DATAINFO_NAME}: says {width}x{height} (WxH) but the frames are "
+                f"{sequence.frame_size[1]}x{sequence.frame_size[0]}"
+            )
+    return sequence
+
+
+def list_sequences(root: str | os.PathLike) -> list[Sequence]:
+    """Every sequence under ``root``, sorted by name.
+
+    A subfolder counts as a sequence when it has an ``img`` folder; other
+    subfolders are skipped silently. Multi-target folders give one sequence
+    per target (``Jogging-1``, ``Jogging-2``).
+
+    Returns
+    -------
+    list of Sequence
+
+    Raises
+    ------
+    DataError
+        If ``root`` is missing or not a folder, if it holds no sequence, or
+        if a sequence folder is broken (the message names the file).
+    """
+    root = Path(root)
+    if not root.is_dir():
+        raise DataError(f"{root}: data root {'is not a folder' if root.exists() else 'not found'}")
+    sequences = []
+    for folder in sorted(p for p in root.iterdir() if p.is_dir()):
+        if not (folder / IMAGE_FOLDER).is_dir():
+            continue
+        targets = find_target_groundtruths(folder)
+        if targets and not (folder / GROUNDTRUTH_NAME).is_file():
+            sequences.extend(open_sequence(folder, target) for target in targets)
+        else:
+            sequences.append(open_sequence(folder))
+    if not sequences:
+        raise DataError(f"{root}: no sequences (subfolders with an '{IMAGE_FOLDER}' folder)")
+    return sorted(sequences, key=lambda s: s.name)

@@ -1,0 +1,111 @@
+"""Writing a tracking video: the frames with the tracked (and true) box drawn.
+
+The video is written like every other output (:mod:`nrmlc.io`): to a
+uniquely named temporary file beside the destination, renamed over it only
+by :meth:`BoxVideoWriter.close` after a successful run; :meth:`abort`
+(an exception, Ctrl-C) removes it and leaves an earlier video untouched.
+"""
+from __future__ import annotations
+
+import contextlib
+import os
+import sys
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from nrmlc import io
+from nrmlc.errors import ParameterError
+
+#: Containers that OpenCV writes with the mp4v codec (checked before opening, so
+#: that an unknown extension gives our message, not OpenCV's).
+VIDEO_EXTENSIONS = (".mp4", ".m4v", ".mov", ".avi", ".mkv")
+
+
+def check_video_path(path: str | os.PathLike, option: str = "--video") -> None:
+    """Refuse a video file name whose extension OpenCV cannot write."""
+    suffix = Path(path).suffix.lower()
+    if suffix not in VIDEO_EXTENSIONS:
+        raise ParameterError(f"{option} {os.fspath(path)}: unknown video extension {suffix or '(none)'!r}; "
+                             f"use one of {', '.join(VIDEO_EXTENSIONS)}")
+
+
+@contextlib.contextmanager
+def _quiet_stderr():
+    """Silence C-level stderr (OpenCV/FFmpeg print their own lines there)."""
+    try:
+        sys.stderr.flush()
+        saved = os.dup(2)
+    except (OSError, ValueError):  # no real fd 2 (e.g. an embedding host): nothing to silence
+        yield
+        return
+    try:
+        with open(os.devnull, "wb") as null:
+            os.dup2(null.fileno(), 2)
+            yield
+    finally:
+        os.dup2(saved, 2)
+        os.close(saved)
+
+
+class BoxVideoWriter:
+    """Draws each tracked frame into an mp4v video, written atomically.
+
+    Parameters
+    ----------
+    path : destination (.mp4, .m4v, .mov, .avi or .mkv).
+    sequence : nrmlc.data.Sequence whose frames are drawn.
+    fps : frame rate of the video.
+
+    Raises
+    ------
+    ParameterError
+        Unknown extension, or OpenCV cannot open a writer (message names ``path``).
+    """
+
+    def __init__(self, path: str | os.PathLike, sequence, fps: float = 25.0) -> None:
+        check_video_path(path)
+        self.path = Path(path)
+        self.sequence = sequence
+        height, width = sequence.frame_size
+        self.tmp_path = io.temporary_for(path)
+        with _quiet_stderr():
+            self.writer = cv2.VideoWriter(str(self.tmp_path), cv2.VideoWriter_fourcc(*"mp4v"), fps, (width, height))
+        if not self.writer.isOpened():
+            io.discard(self.tmp_path)
+            raise ParameterError(f"--video {path}: cannot open a video writer (mp4v)")
+        self.frames_written = 0
+
+    def on_frame(self, index: int, tracker, frame) -> None:
+        image = self.sequence.color_frame(index).copy()
+        truth = self.sequence.groundtruth[index]
+        if np.all(np.isfinite(truth)):
+            _draw(image, truth, (0, 200, 0))
+        box = tracker.initial_box if index == 0 else tracker.last.box
+        _draw(image, box, (0, 0, 255))
+        cv2.putText(image, f"#{index + 1}", (5, 18), cv2.FONT_HERSHEY_SIMPLEX, 0.5, (0, 255, 255), 1)
+        self.writer.write(image)
+        self.frames_written += 1
+
+    def close(self) -> None:
+        """Finish the video and rename it over ``path`` (call only after a successful run)."""
+        self.writer.release()
+        if not self.frames_written:
+            io.discard(self.tmp_path)
+            return
+        io.commit(self.tmp_path, self.path)
+
+    def abort(self) -> None:
+        """Drop the partial video; an earlier file at ``path`` stays as it was."""
+        self.writer.release()
+        io.discard(self.tmp_path)
+
+
+def _draw(image: np.ndarray, box, colour) -> None:
+    x, y, w, h = (float(v) for v in box)
+    if not all(np.isfinite(v) and abs(v) < 1e7 for v in (x, y, w, h)):
+        return  # nothing sensible to draw (and cv2 wants ints)
+    top_left = (int(round(x - 1)), int(round(y - 1)))
+    bottom_right = (int(round(x - 1 + w)), int(round(y - 1 + h)))
+    cv2.rectangle(image, top_left, bottom_right, colour, 2)
