@@ -6,6 +6,10 @@ are usable on their own.
 """
 __version__ = "0.1.0"
 
+# First, before anything can start numba's OpenMP pool: sets the thread policy's
+# environment (see nrmlc.config.set_threads). Light: it imports only os, sys, warnings.
+from nrmlc import config as _config  # noqa: E402,F401
+
 
 def __getattr__(name):
     # Lazy, so that `python -m nrmlc evaluate` and the data tools do not pay for

@@ -16,11 +16,10 @@ median of 20 calls): OpenBLAS ``sgemm`` + cast to float64 took 1.76 ms, a
 numba ``prange`` kernel with float32 accumulation 7.98 ms (float64
 accumulation 16.8 ms), ``dgemm`` on float64 copies 4.0 ms including the
 casts. BLAS wins, so :func:`candidate_template_dots` is a checked wrapper
-around the matrix product and needs no ``njit``. When numpy's BLAS is pinned
-to one thread (the tracker's thread policy, see
-:func:`_row_blocked_product`), the product is split by rows over
-``numba.get_num_threads()`` Python threads instead: 2.8 -> 1.6 ms on 2 cores,
-as fast as OpenBLAS's own threads but without their busy-waiting.
+around the matrix product and needs no ``njit``. Under the thread policy of
+:func:`nrmlc.config.set_threads` numpy's BLAS runs one thread, so the product
+is split by rows over ``numba.get_num_threads()`` Python threads
+(:func:`_row_blocked_product`).
 
 Precision note: ``sgemm`` accumulates in float32, so each dot carries an
 absolute error of up to ~1e-6 for unit-norm rows (7e-7 measured). That is
@@ -89,16 +88,11 @@ def _one_blas_thread():
 def _row_blocked_product(candidates: np.ndarray, templates: np.ndarray) -> np.ndarray:
     """``candidates @ templates.T``, its row blocks multiplied in ``numba.get_num_threads()`` threads.
 
-    Why not BLAS's own threads: OpenBLAS workers busy-wait for ~0.1 s after
-    every call (``OPENBLAS_THREAD_TIMEOUT``, read only at library load), so
-    on a 2-core machine they keep a core spinning while the numba kernels run
-    and, measured, double the CPU time per frame. With BLAS pinned to one
-    thread, splitting the candidates over Python threads (numpy releases the
-    GIL; idle workers sleep) gives the parallel speed-up without the
-    spinning: 2.7 -> 1.65 ms for 600 x 1024 x 206 on 2 cores. BLAS is held to
-    one thread during the product (:func:`_one_blas_thread`). Each row is
-    computed by the same single-threaded kernel whatever the split, so the
-    result does not depend on the thread count (a test checks it bit for bit).
+    BLAS itself is held to one thread (:func:`_one_blas_thread`; why: the
+    thread policy in :func:`nrmlc.config.set_threads`); numpy releases the GIL,
+    so the blocks run in parallel and idle workers sleep. Each row is computed
+    by the same single-threaded kernel whatever the split, so the result does
+    not depend on the thread count (a test checks it bit for bit).
     """
     n_rows = candidates.shape[0]
     n_threads = min(numba.get_num_threads(), n_rows // _MIN_ROWS_PER_THREAD)
