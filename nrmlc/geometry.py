@@ -197,3 +197,31 @@ def affine_for_opencv(matrices: np.ndarray, patch_size: int = PATCH_SIZE) -> np.
     centre = (patch_size - 1) / 2.0
     matrices[..., 2] -= matrices[..., :2] @ np.array([centre, centre])
     return matrices
+
+
+def clamp_states(states: np.ndarray, frame_shape: tuple[int, int], min_size: float,
+                 patch_size: int = PATCH_SIZE) -> np.ndarray:
+    """Keep states in a meaningful range for a frame, in place.
+
+    The centre stays inside the frame (so a box never leaves it entirely), and the
+    template grid's width ``patch_size * scale`` and height ``patch_size * scale * aspect``
+    stay between ``min_size`` and twice the frame's larger side, whatever the motion
+    model drew.
+
+    Parameters
+    ----------
+    states : (n, 6) float64
+    frame_shape : (height, width)
+
+    Returns
+    -------
+    states : (n, 6) float64, the same array
+    """
+    height, width = frame_shape
+    largest = 2.0 * max(height, width)
+    np.clip(states[:, 0], 0.0, width - 1.0, out=states[:, 0])
+    np.clip(states[:, 1], 0.0, height - 1.0, out=states[:, 1])
+    np.clip(states[:, 2], min_size / patch_size, largest / patch_size, out=states[:, 2])
+    side = patch_size * states[:, 2]
+    np.clip(states[:, 4], min_size / side, largest / side, out=states[:, 4])
+    return states

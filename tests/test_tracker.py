@@ -126,13 +126,13 @@ def test_move_to_checks_its_box(sequence):
 def test_problem1_literal_confidence_prefers_the_worst_candidate(coded_frame):
     """Eq. (conf) as printed, 1/exp(-a(e_pos - e_neg)), ranks candidates in reverse."""
     tracker, patches = coded_frame
-    corrected = tracker.encode(patches)["confidence"]
+    corrected = tracker.encode(patches)["log_confidence"]
     tracker.params = tracker.params.replace(confidence="literal")
     try:
-        literal = tracker.encode(patches)["confidence"]
+        literal = tracker.encode(patches)["log_confidence"]
     finally:
         tracker.params = tracker.params.replace(confidence="corrected")
-    np.testing.assert_allclose(literal * corrected, 1.0, rtol=1e-12)
+    np.testing.assert_allclose(literal + corrected, 0.0, atol=1e-12)
     assert np.argmax(literal) == np.argmin(corrected)
 
 
@@ -194,7 +194,7 @@ def test_problem5_errors_are_squared_distances_of_unit_vectors(coded_frame):
     tracker, patches = coded_frame
     coded = tracker.encode(patches)
     n_pos = len(tracker.positive_templates)
-    i = int(np.argmax(coded["confidence"]))
+    i = int(np.argmax(coded["log_confidence"]))
     d = np.zeros(len(tracker.templates))
     d[coded["neighbours"][i]] = coded["codes"][i]
     y = patches[i].astype(np.float64)

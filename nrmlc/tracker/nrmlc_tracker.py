@@ -2,7 +2,10 @@
 
 Per frame:
 
-1. draw ``n_particles`` states from a Gaussian around the previous estimate;
+1. propagate the particles (eq. 1): resample last frame's particles in proportion to
+   their confidence and diffuse them with the Gaussian motion model (``propagation=
+   'condensation'``, IVT's ``estwarp_condens.m``), or draw them all around the previous
+   estimate (``'best'``); keep them inside the frame (:func:`nrmlc.geometry.clamp_states`);
 2. warp them into unit-norm 32x32 patch vectors (:mod:`nrmlc.kernels.warp`);
 3. find each candidate's ``k_max`` nearest templates among ``[T_pos, T_neg]``
    (:mod:`nrmlc.kernels.distance`), which gives the nested local dictionaries
@@ -10,7 +13,8 @@ Per frame:
 4. code the candidate on each dictionary (approximated LLC, eq. allcr / allcn / allc)
    and combine the codes with dictionary weights w (Algorithm 1, eq. allcw)
    (:mod:`nrmlc.kernels.coding`);
-5. score each candidate with h = exp(-alpha (eps_pos - eps_neg)) and keep the best;
+5. score each candidate with log h = -alpha (eps_pos - eps_neg) (in the log domain, so
+   no alpha overflows) and keep the best;
 6. every ``update_interval`` frames, resample the negative templates around the
    estimate and, unless the target is judged occluded (LEN(neg*) too large),
    add the result to the positive templates when eps_pos* < threshold.
@@ -24,12 +28,13 @@ import numpy as np
 
 from nrmlc.data.image import to_gray_float32
 from nrmlc.errors import ParameterError
-from nrmlc.geometry import box_to_state, state_to_affine, state_to_box, usable_boxes
+from nrmlc.geometry import box_to_state, clamp_states, state_to_affine, state_to_box, usable_boxes
 from nrmlc.kernels.coding import combine_dictionaries, encode_dictionaries
 from nrmlc.kernels.distance import candidate_template_dots, nearest_templates, squared_norms, template_gram
 from nrmlc.kernels.warp import warp_patches
 from nrmlc.tracker.params import TrackerParams
-from nrmlc.tracker.templates import negative_states, positive_states
+from nrmlc.tracker.templates import (SCM_PUSH_INIT, SCM_PUSH_UPDATE, negative_states, positive_states,
+                                     scm_negative_states, scm_positive_states)
 
 MIN_BOX_SIZE = 4.0
 
@@ -42,8 +47,11 @@ def as_gray_frame(image: np.ndarray) -> np.ndarray:
     -------
     frame : (height, width) float32
     """
+    if _is_pil_image(image):
+        # PIL images are RGB (got10k's Tracker.track passes them): let PIL make the gray.
+        image = np.asarray(image.convert("L") if image.mode not in ("L", "I;16", "I", "F") else image)
     if not isinstance(image, np.ndarray):
-        raise ParameterError(f"frame must be a numpy array, got {type(image).__name__}")
+        raise ParameterError(f"frame must be a numpy array or a PIL image, got {type(image).__name__}")
     channels = image.shape[2] if image.ndim == 3 else 1
     if image.ndim not in (2, 3) or channels not in (1, 2, 3, 4) or image.shape[0] < 2 or image.shape[1] < 2:
         raise ParameterError(f"frame must be a gray or BGR(A) image of at least 2x2 pixels, got shape {image.shape}")
@@ -55,6 +63,27 @@ def as_gray_frame(image: np.ndarray) -> np.ndarray:
     return frame
 
 
+def _is_pil_image(image) -> bool:
+    """True for a PIL.Image without importing PIL (it is not a dependency)."""
+    return type(image).__module__.startswith("PIL.") and hasattr(image, "convert") and hasattr(image, "mode")
+
+
+def as_box(box, name: str = "box") -> np.ndarray:
+    """A box given as any sequence of 4 numbers, as a (4,) float64 array.
+
+    Raises ParameterError for strings, mappings and anything not 4 finite numbers.
+    """
+    if isinstance(box, (str, bytes, dict)) or not hasattr(box, "__len__"):
+        raise ParameterError(f"{name} must be 4 numbers (x, y, w, h), got {type(box).__name__} {box!r}")
+    try:
+        array = np.asarray(box, dtype=np.float64).reshape(-1)
+    except (TypeError, ValueError):
+        raise ParameterError(f"{name} must be 4 numbers (x, y, w, h), got {box!r}") from None
+    if array.shape != (4,) or not np.all(np.isfinite(array)):
+        raise ParameterError(f"{name} must be 4 finite numbers (x, y, w, h), got {array.tolist()}")
+    return array
+
+
 def clip_initial_box(box, frame_shape) -> np.ndarray:
     """Validate the initial box against the frame: clip it (with a warning) when it is
     partly outside; refuse it when it is wholly outside or smaller than 4 px.
@@ -63,9 +92,7 @@ def clip_initial_box(box, frame_shape) -> np.ndarray:
     -------
     box : (4,) float64, 1-based OTB ``(x, y, w, h)``
     """
-    box = np.asarray(box, dtype=np.float64).reshape(-1)
-    if box.shape != (4,) or not np.all(np.isfinite(box)):
-        raise ParameterError(f"initial box must be 4 finite numbers (x, y, w, h), got {box.tolist()}")
+    box = as_box(box, "initial box")
     height, width = frame_shape
     x0, y0 = box[0], box[1]
     x1, y1 = x0 + box[2], y0 + box[3]
@@ -95,7 +122,9 @@ class FrameResult:
     state : (6,) float64, box : (4,) float64
         Estimate (state) and its 1-based OTB box.
     confidence : float
-        h of the best candidate.
+        h of the best candidate (``exp(log_confidence)``; may be inf for a huge alpha).
+    log_confidence : float
+        log h of the best candidate.
     error_positive, error_negative : float
         eps_pos*, eps_neg* of the best candidate (squared errors of unit vectors).
     template_indices : (k_max,) int64
@@ -121,6 +150,7 @@ class FrameResult:
     state: np.ndarray
     box: np.ndarray
     confidence: float
+    log_confidence: float
     error_positive: float
     error_negative: float
     template_indices: np.ndarray
@@ -136,6 +166,32 @@ class FrameResult:
     negative_share_c: float
     negative_share_w: float
     updated_positive: bool = False
+
+
+def _exp_or_inf(value: float) -> float:
+    """exp(value) for reporting h, inf instead of an overflow warning."""
+    return float("inf") if value > 709.0 else float(np.exp(value))
+
+
+def centre_patches(patches: np.ndarray) -> np.ndarray:
+    """Subtract each patch's mean and rescale it to unit l2 norm (a flat patch becomes
+    the flat unit vector, as in :mod:`nrmlc.kernels.warp`).
+
+    Parameters
+    ----------
+    patches : (n, dim) float32
+
+    Returns
+    -------
+    patches : (n, dim) float32, C-contiguous
+    """
+    centred = patches - patches.mean(axis=1, keepdims=True, dtype=np.float64).astype(np.float32)
+    norms = np.sqrt(np.einsum("ij,ij->i", centred, centred, dtype=np.float64))
+    flat = norms <= 1e-12
+    centred[flat] = np.float32(1.0 / np.sqrt(patches.shape[1]))
+    norms[flat] = 1.0
+    centred /= norms[:, None].astype(np.float32)
+    return np.ascontiguousarray(centred)
 
 
 class NRMLCTracker:
@@ -174,7 +230,10 @@ class NRMLCTracker:
 
     # -- templates -------------------------------------------------------
     def _warp(self, frame: np.ndarray, states: np.ndarray) -> np.ndarray:
-        return warp_patches(frame, np.ascontiguousarray(state_to_affine(states)), self.params.patch_size)
+        patches = warp_patches(frame, np.ascontiguousarray(state_to_affine(states)), self.params.patch_size)
+        if self.params.patch_normalization == "centred":
+            patches = centre_patches(patches)
+        return patches
 
     def _set_templates(self, positives: np.ndarray, negatives: np.ndarray) -> None:
         self.positive_templates = positives
@@ -183,30 +242,49 @@ class NRMLCTracker:
         self.template_gram = template_gram(self.templates)
         self.template_sq_norms = np.ascontiguousarray(np.diag(self.template_gram))
 
-    def _sample_negatives(self, frame: np.ndarray, state: np.ndarray) -> np.ndarray:
+    def _sample_positives(self, frame: np.ndarray, state: np.ndarray) -> np.ndarray:
         p = self.params
-        states = negative_states(self.rng, state, p.n_negative, p.positive_radius, p.negative_radius)
+        if p.template_sampling == "scm":
+            states = scm_positive_states(self.rng, state, p.n_positive, p.positive_sigma)
+        else:
+            states = positive_states(self.rng, state, p.n_positive, p.positive_radius)
+        return self._warp(frame, states)
+
+    def _sample_negatives(self, frame: np.ndarray, state: np.ndarray, first: bool = False) -> np.ndarray:
+        p = self.params
+        if p.template_sampling == "scm":
+            push = SCM_PUSH_INIT if first else SCM_PUSH_UPDATE
+            states = scm_negative_states(self.rng, state, p.n_negative, p.patch_size, push)
+        else:
+            states = negative_states(self.rng, state, p.n_negative, p.positive_radius, p.negative_radius)
         return self._warp(frame, states)
 
     # -- public interface -----------------------------------------------
-    def init(self, image: np.ndarray, box) -> None:
-        """Start tracking the target in ``box`` (1-based x, y, w, h) of ``image``."""
+    def init(self, image, box) -> None:
+        """Start tracking the target in ``box`` (1-based x, y, w, h) of ``image``
+        (a numpy image or a PIL image)."""
         frame = as_gray_frame(image)
         box = clip_initial_box(box, frame.shape)
         p = self.params
         self.rng = np.random.default_rng(self.seed)
+        self.frame_shape = frame.shape
         self.state = box_to_state(box, p.patch_size)
         self.initial_box = box
-        positives = self._warp(frame, positive_states(self.rng, self.state, p.n_positive, p.positive_radius))
-        self._set_templates(positives, self._sample_negatives(frame, self.state))
+        self.particles = None
+        self.log_weights = None
+        positives = self._sample_positives(frame, self.state)
+        self._set_templates(positives, self._sample_negatives(frame, self.state, first=True))
         self.frame_index = 0
         self.last = None
 
-    def update(self, image: np.ndarray) -> np.ndarray:
+    def update(self, image) -> np.ndarray:
         """Track into the next frame; returns the 1-based ``(x, y, w, h)`` box."""
         if self.state is None:
             raise ParameterError("call init(frame, box) before update(frame)")
         frame = as_gray_frame(image)
+        if frame.shape != self.frame_shape:
+            raise ParameterError(f"frame is {frame.shape[1]}x{frame.shape[0]} but init() saw "
+                                 f"{self.frame_shape[1]}x{self.frame_shape[0]}")
         self.frame_index += 1
         result = self.step(frame)
         if (self.frame_index + 1) % self.params.update_interval == 0:
@@ -221,23 +299,37 @@ class NRMLCTracker:
         """
         if self.state is None:
             raise ParameterError("call init(frame, box) before move_to(box)")
-        box = np.asarray(box, dtype=np.float64).reshape(-1)
-        if box.shape != (4,) or not usable_boxes(box):
+        box = as_box(box)
+        if not usable_boxes(box):
             raise ParameterError(f"box must be 4 finite numbers (x, y, w, h) with w, h > 0, got {box.tolist()}")
         self.state = box_to_state(box, self.params.patch_size)
+        self.particles = None
+        self.log_weights = None
 
     # -- one frame -------------------------------------------------------
     def sample_particles(self) -> np.ndarray:
-        """(n_particles, 6) states drawn around the current estimate."""
+        """(n_particles, 6) states for this frame: last frame's particles resampled by
+        confidence (condensation) or the estimate repeated, then diffused and clamped."""
         p = self.params
-        noise = self.rng.standard_normal((p.n_particles, 6)) * np.asarray(p.motion_sigmas)
-        states = np.tile(self.state, (p.n_particles, 1))
+        n = p.n_particles
+        if p.propagation == "condensation" and self.particles is not None:
+            weights = np.exp(self.log_weights - self.log_weights.max())
+            cumulative = np.cumsum(weights)
+            # Multinomial resampling, as estwarp_condens.m; searchsorted keeps it O(n log n).
+            picks = np.searchsorted(cumulative, self.rng.random(n) * cumulative[-1], side="right")
+            states = self.particles[np.minimum(picks, n - 1)]
+        else:
+            states = np.tile(self.state, (n, 1))
+        noise = self.rng.standard_normal((n, 6)) * np.asarray(p.motion_sigmas)
+        if p.translation_noise == "relative":
+            size = states[:, 2] * np.sqrt(0.5 * (1.0 + states[:, 4] ** 2))
+            noise[:, 0:2] *= size[:, None]
         states[:, 0:2] += noise[:, 0:2]
         states[:, 2] *= np.exp(noise[:, 2])
         states[:, 3] += noise[:, 3]
         states[:, 4] *= np.exp(noise[:, 4])
         states[:, 5] += noise[:, 5]
-        return states
+        return clamp_states(states, self.frame_shape, MIN_BOX_SIZE, p.patch_size)
 
     def encode(self, candidates: np.ndarray) -> dict:
         """Code candidate vectors on the current templates (Algorithm 1 for each).
@@ -250,7 +342,7 @@ class NRMLCTracker:
         -------
         dict with ``dots (n, n_templates)``, ``neighbours (n, k_max)``,
         ``coefficients (n, m, k_max)``, ``weights (n, m)``, ``codes (n, k_max)``,
-        ``error_positive (n,)``, ``error_negative (n,)``, ``confidence (n,)``.
+        ``error_positive (n,)``, ``error_negative (n,)``, ``log_confidence (n,)``.
         """
         p = self.params
         ridge_c, ridge_w = p.ridges
@@ -265,10 +357,11 @@ class NRMLCTracker:
             self.template_gram, dots, sq_norms, neighbours, coefficients, sizes,
             len(self.positive_templates), ridge_w, constrained, p.n_iterations)
         sign = -1.0 if p.confidence == "corrected" else 1.0
-        # Only the ranking matters for the estimate; the exponent is kept to report h.
-        confidence = np.exp(sign * p.alpha * (error_positive - error_negative))
+        # log h: the ranking and the condensation weights are taken from it, never from h,
+        # so no alpha can overflow into a tie.
+        log_confidence = sign * p.alpha * (error_positive - error_negative)
         return dict(dots=dots, neighbours=neighbours, coefficients=coefficients, weights=weights, codes=codes,
-                    error_positive=error_positive, error_negative=error_negative, confidence=confidence)
+                    error_positive=error_positive, error_negative=error_negative, log_confidence=log_confidence)
 
     def step(self, frame: np.ndarray) -> FrameResult:
         """Estimate the target in ``frame`` (no template update)."""
@@ -276,7 +369,10 @@ class NRMLCTracker:
         states = self.sample_particles()
         candidates = self._warp(frame, states)
         coded = self.encode(candidates)
-        best = int(np.argmax(coded["confidence"]))
+        log_confidence = coded["log_confidence"]
+        best = int(np.argmax(log_confidence))
+        self.particles = states
+        self.log_weights = log_confidence
         n_pos = len(self.positive_templates)
         indices = coded["neighbours"][best]
         codes = coded["codes"][best]
@@ -285,10 +381,10 @@ class NRMLCTracker:
         sizes = np.asarray(p.dictionary_sizes)
         within = np.arange(p.k_max)[None, :] < sizes[:, None]  # (m, k_max): entries of each c^j
         coefficient_values = coded["coefficients"][:, within]
-        self.state = states[best]
+        self.state = states[best].copy()
         result = FrameResult(
             state=self.state.copy(), box=state_to_box(self.state, p.patch_size),
-            confidence=float(coded["confidence"][best]),
+            confidence=_exp_or_inf(log_confidence[best]), log_confidence=float(log_confidence[best]),
             error_positive=float(coded["error_positive"][best]), error_negative=float(coded["error_negative"][best]),
             template_indices=indices.copy(), codes=codes.copy(), coefficients=coded["coefficients"][best].copy(),
             weights=coded["weights"][best].copy(), n_positive_templates=n_pos, n_templates=len(self.templates),

@@ -10,9 +10,22 @@ from nrmlc.errors import ParameterError
 
 CODING_MODES = ("regularized", "constrained", "plain")
 CONFIDENCE_FORMS = ("corrected", "literal")
+TEMPLATE_SAMPLINGS = ("scm", "annulus")
+PROPAGATIONS = ("condensation", "best")
+TRANSLATION_NOISES = ("pixels", "relative")
+PATCH_NORMALIZATIONS = ("unit", "centred")
 
 #: Largest local dictionary the compiled solvers accept.
 MAX_DICTIONARY_SIZE = 16
+
+#: Resource limits: 100,000 particles are 400 MB of patches; 10,000 templates a 800 MB Gram.
+MAX_PARTICLES = 100_000
+MAX_TEMPLATES = 10_000
+#: Template radii and offsets beyond this (template pixels, i.e. 1000x the target) are nonsense.
+MAX_RADIUS = 1000.0
+#: Per-frame motion std beyond these is not a motion model: 1000 px (or template px), an
+#: e-fold of scale or aspect, pi rad.
+MAX_MOTION_SIGMA = (1000.0, 1000.0, 1.0, math.pi, 1.0, math.pi)
 
 
 @dataclass(frozen=True)
@@ -70,6 +83,29 @@ class TrackerParams:
         exceeds this (for LEN(neg*)).
     patch_size : int
         Templates and candidates are patch_size x patch_size (paper: 32).
+    template_sampling : {'scm', 'annulus'}
+        Where template centres are drawn. 'scm' follows SCM's ``affineTrainG.m`` /
+        ``updateDic.m`` (the lineage of the paper's template scheme): positives from
+        N(0, ``positive_sigma`` px) about the target; negatives from N(0, (w, h) px),
+        a coordinate within +-w/4 (+-h/4; +-1/5 at updates) of the target's pushed out
+        to the edge of that zone. 'annulus' is Sec. 3 as printed: positives within
+        ``positive_radius``, negatives in ``positive_radius < d < negative_radius``.
+    positive_sigma : float
+        Std (image pixels) of the positive template centres under 'scm' (SCM: 1).
+    propagation : {'condensation', 'best'}
+        'condensation' is eq. (1) as IVT's ``estwarp_condens.m`` implements it: the
+        particles are resampled in proportion to their confidence h, then diffused by
+        the motion model; alpha then sets how peaked the weights are. 'best' draws all
+        particles around the previous estimate. Either way the estimate is the most
+        confident particle.
+    translation_noise : {'pixels', 'relative'}
+        'pixels': ``motion_sigmas[0:2]`` are image pixels. 'relative' (L1APG's
+        ``draw_sample``): they are template pixels, i.e. multiplied by the target's
+        size ``sqrt((w^2 + h^2) / 2) / patch_size``.
+    patch_normalization : {'unit', 'centred'}
+        'unit': patches are scaled to unit l2 norm (the paper). 'centred': the
+        patch mean is subtracted first (L1APG whitens its patches), which removes a
+        uniform brightness change.
     """
 
     n_particles: int = 600
@@ -92,6 +128,11 @@ class TrackerParams:
     occlusion_max_negative: int = 2
     coefficient_tolerance: float = 1e-6
     patch_size: int = PATCH_SIZE
+    template_sampling: str = "scm"
+    positive_sigma: float = 1.0
+    propagation: str = "condensation"
+    translation_noise: str = "pixels"
+    patch_normalization: str = "unit"
 
     def __post_init__(self) -> None:
         def fail(name: str, message: str) -> None:
@@ -106,21 +147,31 @@ class TrackerParams:
             if isinstance(value, bool) or not isinstance(value, int):
                 fail(name, f"must be an integer, got {value!r}")
         for name in ("positive_radius", "negative_radius", "lam", "beta", "alpha",
-                     "update_error_threshold", "coefficient_tolerance"):
+                     "update_error_threshold", "coefficient_tolerance", "positive_sigma"):
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
                 fail(name, f"must be a finite number, got {value!r}")
-        if self.n_particles < 1:
-            fail("n_particles", f"must be >= 1, got {self.n_particles}")
+        # Limits that refuse, before any work, values that would exhaust memory or overflow.
+        if not 1 <= self.n_particles <= MAX_PARTICLES:
+            fail("n_particles", f"must be in 1..{MAX_PARTICLES}, got {self.n_particles}")
         if len(self.motion_sigmas) != 6 or any(not math.isfinite(v) or v < 0 for v in self.motion_sigmas):
             fail("motion_sigmas", f"must be 6 finite non-negative numbers, got {self.motion_sigmas}")
+        if any(v > MAX_MOTION_SIGMA[i] for i, v in enumerate(self.motion_sigmas)):
+            fail("motion_sigmas", f"each must be at most {MAX_MOTION_SIGMA} (translation px or template px, "
+                                  f"log scale, rad, log aspect, rad), got {self.motion_sigmas}")
         if self.n_positive < 1:
             fail("n_positive", f"must be >= 1, got {self.n_positive}")
         if self.n_negative < 0:
             fail("n_negative", f"must be >= 0, got {self.n_negative}")
+        if self.max_positive + self.n_negative > MAX_TEMPLATES:
+            fail("n_negative" if self.n_negative > self.max_positive else "max_positive",
+                 f"max_positive + n_negative must be at most {MAX_TEMPLATES} (the template Gram is "
+                 f"their square), got {self.max_positive} + {self.n_negative}")
         if not 0 <= self.positive_radius < self.negative_radius:
             fail("negative_radius", f"need 0 <= positive_radius < negative_radius, got "
                                     f"{self.positive_radius} and {self.negative_radius}")
+        if self.negative_radius > MAX_RADIUS:
+            fail("negative_radius", f"must be at most {MAX_RADIUS:g} template pixels, got {self.negative_radius}")
         if not self.dictionary_sizes:
             fail("dictionary_sizes", "needs at least one dictionary size")
         n_templates = self.n_positive + self.n_negative
@@ -129,6 +180,13 @@ class TrackerParams:
                 fail("dictionary_sizes", f"each k must be in 1..{MAX_DICTIONARY_SIZE}, got {k}")
             if k > n_templates:
                 fail("dictionary_sizes", f"k = {k} is larger than the template count {n_templates}")
+        for name, choices in (("template_sampling", TEMPLATE_SAMPLINGS), ("propagation", PROPAGATIONS),
+                              ("translation_noise", TRANSLATION_NOISES),
+                              ("patch_normalization", PATCH_NORMALIZATIONS)):
+            if getattr(self, name) not in choices:
+                fail(name, f"unknown value {getattr(self, name)!r}; choose one of {', '.join(choices)}")
+        if not 0 <= self.positive_sigma <= MAX_RADIUS:
+            fail("positive_sigma", f"must be in [0, {MAX_RADIUS:g}], got {self.positive_sigma}")
         if self.coding not in CODING_MODES:
             fail("coding", f"unknown mode {self.coding!r}; choose one of {', '.join(CODING_MODES)}")
         if self.confidence not in CONFIDENCE_FORMS:
@@ -168,6 +226,29 @@ class TrackerParams:
 
     def as_dict(self) -> dict:
         return dataclasses.asdict(self)
+
+    @classmethod
+    def preset(cls, name: str, **changes) -> "TrackerParams":
+        """A named configuration (see :data:`PRESETS`), with some fields changed."""
+        if name not in PRESETS:
+            raise ParameterError(f"unknown preset {name!r}; choose one of {', '.join(PRESETS)}")
+        return cls(**{**PRESETS[name], **changes})
+
+    @classmethod
+    def paper(cls, **changes) -> "TrackerParams":
+        """The paper as printed: no extension beyond it (:data:`PRESETS` ``'paper'``)."""
+        return cls.preset("paper", **changes)
+
+
+#: Named configurations. 'default' is the tuned tracker (every value chosen on the
+#: development sequences, see the README). 'paper' is the paper as printed where it says
+#: something (Sec. 3's annulus templates, eq. (1)'s posterior propagation) with every
+#: extension beyond it switched off; the values it leaves unstated are the defaults'.
+PRESETS: dict[str, dict] = {
+    "default": {},
+    "paper": dict(template_sampling="annulus", propagation="condensation", translation_noise="pixels",
+                  patch_normalization="unit"),
+}
 
 
 def parse_param_assignment(text: str) -> tuple[str, object]:

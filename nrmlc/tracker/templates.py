@@ -60,3 +60,52 @@ def negative_states(rng: np.random.Generator, state: np.ndarray, n: int, inner: 
     states : (n, 6) float64
     """
     return shifted_states(state, offsets_in_annulus(rng, n, inner, outer))
+
+
+#: SCM's push-out zones (fractions of the negative std) at initialisation
+#: (``affineTrainG.m``: ``back = round(sigma/4)``) and at updates (``updateDic.m``: ``/5``).
+SCM_PUSH_INIT = 0.25
+SCM_PUSH_UPDATE = 0.2
+
+
+def target_size(state: np.ndarray, patch_size: int) -> tuple[float, float]:
+    """Width and height (image pixels) of the target's template grid, ignoring rotation,
+    as SCM measures them (``sz * est(3)`` and ``sz * est(3) * p0``)."""
+    return float(patch_size * state[2]), float(patch_size * state[2] * state[4])
+
+
+def scm_positive_states(rng: np.random.Generator, state: np.ndarray, n: int, sigma: float) -> np.ndarray:
+    """``n`` states whose centres are drawn from N(state centre, sigma^2 I) (image pixels),
+    as SCM's ``affineTrainG.m`` draws its positive templates (sigma = 1 px there).
+
+    Returns
+    -------
+    states : (n, 6) float64
+    """
+    states = np.tile(state, (n, 1))
+    states[:, :2] += sigma * rng.standard_normal((n, 2))
+    return states
+
+
+def scm_negative_states(rng: np.random.Generator, state: np.ndarray, n: int, patch_size: int,
+                        push: float) -> np.ndarray:
+    """``n`` negative template states as SCM draws them (``affineTrainG.m``, ``updateDic.m``).
+
+    Centres are drawn from N(centre, diag(w^2, h^2)) in image pixels; a coordinate that
+    falls within ``push * w`` (``push * h``) of the target's is moved out to the edge of
+    that zone, on its own side, so no negative is centred on the target.
+
+    Returns
+    -------
+    states : (n, 6) float64
+    """
+    width, height = target_size(state, patch_size)
+    states = np.tile(state, (n, 1))
+    for axis, sigma in ((0, width), (1, height)):
+        offset = sigma * rng.standard_normal(n)
+        zone = push * sigma
+        inside = np.abs(offset) <= zone
+        # SCM maps [0, zone] to +zone and [-zone, 0) to -zone.
+        offset[inside] = np.where(offset[inside] >= 0, zone, -zone)
+        states[:, axis] += offset
+    return states
