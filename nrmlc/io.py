@@ -161,11 +161,6 @@ def check_output(path: str | os.PathLike, option: str, inputs: Iterable[str | os
     if info is not None and not stat.S_ISREG(info.st_mode):
         raise ParameterError(f"{where}: not a regular file (a device, FIFO or socket); give a file name")
     target = _target(text)
-    for folder in input_folders:
-        folder = _target(folder)
-        if folder == target.parent or folder in target.parents:
-            raise ParameterError(f"{where}: is inside {folder}, which holds this run's input frames; "
-                                 f"write it elsewhere")
     if info is not None:
         for source in inputs:
             try:
@@ -175,6 +170,11 @@ def check_output(path: str | os.PathLike, option: str, inputs: Iterable[str | os
             if same:
                 raise ParameterError(f"{where}: is an input of this run ({os.fspath(source)}); "
                                      f"choose another file")
+    for folder in input_folders:
+        folder = _target(folder)
+        if folder == target.parent or folder in target.parents:
+            raise ParameterError(f"{where}: is inside {folder}, which holds this run's input frames; "
+                                 f"write it elsewhere")
     # The nearest existing folder decides whether the missing ones can be created.
     folder = target.parent
     while not folder.exists() and folder != folder.parent:
