@@ -20,14 +20,14 @@ number in ``figures/bench.json``:
 
 References (what "plain numpy" means, column ``reference`` of the table):
 
-* warp: ``tests/reference_warp.warp_patches_reference``, the test oracle (a
+* warp: ``nrmlc.testing.reference.warp_patches_reference``, the test oracle (a
   loop over particles, each vectorised in float64 numpy);
-* distances + KNN: ``tests/reference.reference_dots`` (the oracle, float64
+* distances + KNN: ``nrmlc.testing.reference.reference_dots`` (the oracle, float64
   ``einsum``), the ``|y|^2 + |t|^2 - 2 y.t`` expansion and a stable argsort.
   A second row, ``distances+knn (numpy BLAS)``, uses the same sgemm as the
   kernel (``Y @ T.T``) with ``np.argpartition`` + sort: the fair comparison for
   the selection part, since the product itself is BLAS either way;
-* coding / weights: ``tests/reference.reference_encode`` and
+* coding / weights: ``nrmlc.testing.reference.reference_encode`` and
   ``reference_combine``, the oracles (a loop over candidates solving each small
   problem with ``np.linalg``; SLSQP for the constrained QP). They cost the same
   for every candidate, so they are timed on a subset of candidates and scaled
@@ -59,7 +59,6 @@ from pathlib import Path
 import numpy as np
 
 REPO_ROOT = Path(__file__).resolve().parent.parent
-TESTS_DIR = REPO_ROOT / "tests"
 
 #: Particle counts of the cost-vs-N table.
 PARTICLE_COUNTS = (100, 300, 600, 1200)
@@ -158,14 +157,17 @@ def _numpy_blas_knn(candidates, templates, template_sq_norms, k):
 def bench_kernels(sequence, counts, repeats: int, reference_repeats: int, warm_frames: int,
                   reference_subset: dict) -> list[dict]:
     """One row per (kernel, N): kernel time, reference time, ratio."""
-    sys.path.insert(0, str(TESTS_DIR))
-    from reference import reference_combine, reference_dots, reference_encode, reference_nearest
-    from reference_warp import warp_patches_reference
-
     from nrmlc.geometry import state_to_affine
     from nrmlc.kernels.coding import combine_dictionaries, encode_dictionaries
     from nrmlc.kernels.distance import candidate_template_dots, nearest_templates, squared_norms
     from nrmlc.kernels.warp import warp_patches
+    from nrmlc.testing.reference import (
+        reference_combine,
+        reference_dots,
+        reference_encode,
+        reference_nearest,
+        warp_patches_reference,
+    )
 
     base, frame = _warmed_tracker(sequence, warm_frames)
     params = base.params
@@ -199,7 +201,7 @@ def bench_kernels(sequence, counts, repeats: int, reference_repeats: int, warm_f
 
         row = add("warp", n, measure(lambda: warp_patches(frame, affines), repeats),
                   measure(lambda: warp_patches_reference(frame, affines), reference_repeats, 0),
-                  "tests/reference_warp.py (oracle)")
+                  "nrmlc/testing/reference.py (oracle)")
         frame_reference += row["reference_ms"]
 
         def knn():
@@ -213,7 +215,7 @@ def bench_kernels(sequence, counts, repeats: int, reference_repeats: int, warm_f
 
         timing = measure(knn, repeats)
         row = add("distances+knn", n, timing, measure(knn_reference, reference_repeats, 0),
-                  "tests/reference.py einsum + stable argsort (oracle)")
+                  "nrmlc/testing/reference.py einsum + stable argsort (oracle)")
         frame_reference += row["reference_ms"]
         add("distances+knn (numpy BLAS)", n, timing,
             measure(lambda: _numpy_blas_knn(candidates, templates, t_norms, k_max), reference_repeats, 0),
@@ -234,7 +236,7 @@ def bench_kernels(sequence, counts, repeats: int, reference_repeats: int, warm_f
             row = add(f"coding {mode}", n, measure(encode, repeats),
                       measure(lambda: reference_encode(candidates[:subset], templates, neighbours[:subset], sizes,
                                                        ridge_c, constrained), reference_repeats, 0),
-                      "tests/reference.py reference_encode (oracle)", subset)
+                      "nrmlc/testing/reference.py reference_encode (oracle)", subset)
             if mode == params.coding:
                 frame_reference += row["reference_ms"]
 
@@ -246,7 +248,7 @@ def bench_kernels(sequence, counts, repeats: int, reference_repeats: int, warm_f
                       measure(lambda: reference_combine(candidates[:subset], templates, neighbours[:subset],
                                                         coefficients[:subset], sizes, n_positive, ridge_w,
                                                         constrained, params.n_iterations), reference_repeats, 0),
-                      "tests/reference.py reference_combine (oracle)", subset)
+                      "nrmlc/testing/reference.py reference_combine (oracle)", subset)
             if mode == params.coding:
                 frame_reference += row["reference_ms"]
 

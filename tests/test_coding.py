@@ -10,7 +10,7 @@ from hypothesis import strategies as st
 from nrmlc.errors import ParameterError
 from nrmlc.kernels.coding import combine_dictionaries, encode_dictionaries, scatter_codes
 from nrmlc.kernels.distance import candidate_template_dots, nearest_templates, template_gram
-from reference import (
+from nrmlc.testing.reference import (
     kkt_report,
     make_problem,
     reference_combine,

@@ -9,7 +9,7 @@ from hypothesis import strategies as st
 
 from nrmlc.errors import ParameterError
 from nrmlc.kernels.distance import candidate_template_dots, nearest_templates, squared_norms, template_gram
-from reference import make_problem, reference_dots, reference_nearest, reference_sq_distances
+from nrmlc.testing.reference import make_problem, reference_dots, reference_nearest, reference_sq_distances
 
 
 def _tables(candidates, templates):

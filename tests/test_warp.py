@@ -7,7 +7,7 @@ from hypothesis import given, settings, strategies as st
 from nrmlc.errors import ParameterError
 from nrmlc.geometry import affine_for_opencv, box_to_state, state_to_affine
 from nrmlc.kernels.warp import warp_patches
-from reference_warp import warp_patches_reference
+from nrmlc.testing.reference import warp_patches_reference
 
 
 def _frame(height=60, width=80, seed=0):

@@ -60,14 +60,12 @@ silent fallback.
 """
 from __future__ import annotations
 
-import numbers
-
 import numpy as np
 from numba import njit, prange
 
 from nrmlc.config import NUMBA_FLAGS, PARALLEL_FLAGS
 from nrmlc.errors import ParameterError
-from nrmlc.kernels.checks import check_array, check_length
+from nrmlc.kernels.checks import check_array, check_flag, check_indices, check_int, check_length, check_nonnegative_real
 
 __all__ = ["PLAIN_JITTER", "encode_dictionaries", "combine_dictionaries", "scatter_codes"]
 
@@ -516,31 +514,6 @@ def _combine_dictionaries(
 # Checked public wrappers
 # ---------------------------------------------------------------------------
 
-def _check_int(name, value, minimum, maximum=None):
-    if isinstance(value, (bool, np.bool_)) or not isinstance(value, numbers.Integral):
-        raise ParameterError(f"{name} must be an integer, got {value!r}")
-    value = int(value)
-    if value < minimum or (maximum is not None and value > maximum):
-        upper = "" if maximum is None else f", <= {maximum}"
-        raise ParameterError(f"{name} must be >= {minimum}{upper}, got {value}")
-    return value
-
-
-def _check_ridge(name, value):
-    if isinstance(value, (bool, np.bool_)) or not isinstance(value, numbers.Real):
-        raise ParameterError(f"{name} must be a real number, got {value!r}")
-    value = float(value)
-    if not (np.isfinite(value) and value >= 0.0):
-        raise ParameterError(f"{name} must be finite and >= 0, got {value}")
-    return value
-
-
-def _check_flag(name, value):
-    if not isinstance(value, (bool, np.bool_)):
-        raise ParameterError(f"{name} must be a bool, got {value!r}")
-    return bool(value)
-
-
 def _check_common(template_gram, dots, candidate_sq_norms, neighbour_indices, dictionary_sizes):
     """Validate the inputs shared by both kernels; return (n_candidates, n_templates, k_max)."""
     check_array("template_gram", template_gram, np.float64, 2)
@@ -558,11 +531,7 @@ def _check_common(template_gram, dots, candidate_sq_norms, neighbour_indices, di
     k_max = neighbour_indices.shape[1]
     if k_max < 1:
         raise ParameterError("neighbour_indices must have at least one column")
-    # Out-of-range indices would read outside template_gram in the kernels.
-    if neighbour_indices.size and (
-        neighbour_indices.min() < 0 or neighbour_indices.max() >= n_templates
-    ):
-        raise ParameterError(f"neighbour_indices must lie in [0, {n_templates})")
+    check_indices("neighbour_indices", neighbour_indices, n_templates)
     if dictionary_sizes.shape[0] < 1:
         raise ParameterError("dictionary_sizes must list at least one dictionary")
     if dictionary_sizes.min() < 1 or dictionary_sizes.max() > k_max:
@@ -617,8 +586,8 @@ def encode_dictionaries(
     n_candidates, _, k_max = _check_common(
         template_gram, dots, candidate_sq_norms, neighbour_indices, dictionary_sizes
     )
-    ridge = _check_ridge("ridge", ridge)
-    constrained = _check_flag("constrained", constrained)
+    ridge = check_nonnegative_real("ridge", ridge)
+    constrained = check_flag("constrained", constrained)
     n_dictionaries = dictionary_sizes.shape[0]
     coefficients = np.zeros((n_candidates, n_dictionaries, k_max), dtype=np.float64)
     # Per-candidate work buffers, allocated once outside the parallel loop.
@@ -694,10 +663,10 @@ def combine_dictionaries(
             f"coefficients must have shape ({n_candidates}, {n_dictionaries}, {k_max}), "
             f"got {coefficients.shape}"
         )
-    n_positive = _check_int("n_positive", n_positive, 0, n_templates)
-    ridge = _check_ridge("ridge", ridge)
-    constrained = _check_flag("constrained", constrained)
-    n_iterations = _check_int("n_iterations", n_iterations, 0)
+    n_positive = check_int("n_positive", n_positive, 0, n_templates)
+    ridge = check_nonnegative_real("ridge", ridge)
+    constrained = check_flag("constrained", constrained)
+    n_iterations = check_int("n_iterations", n_iterations, 0)
 
     weights = np.empty((n_candidates, n_dictionaries), dtype=np.float64)
     codes = np.empty((n_candidates, k_max), dtype=np.float64)
@@ -743,11 +712,8 @@ def scatter_codes(codes: np.ndarray, neighbour_indices: np.ndarray, n_templates:
         raise ParameterError(
             f"neighbour_indices shape {neighbour_indices.shape} differs from codes shape {codes.shape}"
         )
-    n_templates = _check_int("n_templates", n_templates, 1)
-    if neighbour_indices.size and (
-        neighbour_indices.min() < 0 or neighbour_indices.max() >= n_templates
-    ):
-        raise ParameterError(f"neighbour_indices must lie in [0, {n_templates})")
+    n_templates = check_int("n_templates", n_templates, 1)
+    check_indices("neighbour_indices", neighbour_indices, n_templates)
     full_codes = np.zeros((codes.shape[0], n_templates), dtype=np.float64)
     rows = np.arange(codes.shape[0])[:, None]
     np.add.at(full_codes, (rows, neighbour_indices), codes)

@@ -39,7 +39,7 @@ from numba import njit, prange
 
 from nrmlc.config import PARALLEL_FLAGS
 from nrmlc.errors import ParameterError
-from nrmlc.kernels.checks import check_array, check_length
+from nrmlc.kernels.checks import check_array, check_int, check_length
 
 __all__ = ["candidate_template_dots", "squared_norms", "template_gram", "nearest_templates"]
 
@@ -282,11 +282,7 @@ def nearest_templates(
     n_candidates, n_templates = dots.shape
     check_length("candidate_sq_norms", candidate_sq_norms, n_candidates, f"dots has {n_candidates} rows")
     check_length("template_sq_norms", template_sq_norms, n_templates, f"dots has {n_templates} columns")
-    if isinstance(k, (bool, np.bool_)) or not isinstance(k, (int, np.integer)):
-        raise ParameterError(f"k must be an integer, got {k!r}")
-    k = int(k)
-    if not 1 <= k <= n_templates:
-        raise ParameterError(f"k must be in [1, n_templates={n_templates}], got {k}")
+    k = check_int("k", k, 1, n_templates)
     indices = np.empty((n_candidates, k), dtype=np.int64)
     sq_distances = np.empty((n_candidates, k), dtype=np.float64)
     _nearest_templates(dots, candidate_sq_norms, template_sq_norms, indices, sq_distances)

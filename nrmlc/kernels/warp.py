@@ -25,7 +25,7 @@ from numba import njit, prange
 
 from nrmlc.config import PARALLEL_FLAGS, PATCH_SIZE
 from nrmlc.errors import ParameterError
-from nrmlc.kernels.checks import check_array
+from nrmlc.kernels.checks import check_array, check_finite, check_int
 
 
 @njit(**PARALLEL_FLAGS)
@@ -146,13 +146,9 @@ def warp_patches(frame: np.ndarray, affines: np.ndarray, patch_size: int = PATCH
     check_array("affines", affines, np.float64, 3)
     if affines.shape[1:] != (2, 3):
         raise ParameterError(f"affines must have shape (n_particles, 2, 3), got {affines.shape}")
-    if not np.all(np.isfinite(affines)):
-        raise ParameterError("affines contain NaN or infinite values")
-    if not np.all(np.isfinite(frame)):
-        raise ParameterError("frame contains NaN or infinite values")
-    if int(patch_size) < 2:
-        raise ParameterError(f"patch_size must be >= 2, got {patch_size}")
-    patch_size = int(patch_size)
+    check_finite("affines", affines)
+    check_finite("frame", frame)
+    patch_size = check_int("patch_size", patch_size, 2)
     n_particles = affines.shape[0]
     patches = np.empty((n_particles, patch_size**2), dtype=np.float32)
     # Per-particle work buffers, allocated once outside the parallel loop.

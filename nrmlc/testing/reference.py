@@ -1,5 +1,8 @@
 """Slow, obvious numpy references (the test oracles) for the compiled kernels.
 
+Used by the tests (``tests/test_warp.py``, ``test_distance.py``,
+``test_coding.py``) and by ``make bench``, which times each kernel against them.
+
 Everything here works on the explicit ``dim``-length vectors in float64 and
 follows the paper literally: local dictionaries are built as matrices,
 systems are solved with ``np.linalg.solve`` / ``lstsq``, Algorithm 1 is a
@@ -8,9 +11,10 @@ plain loop. Speed is irrelevant; clarity is the point.
 Sections
 --------
 1. Test data
-2. Distances and nearest templates        (nrmlc.kernels.distance)
-3. Sum-to-one coding problems             (nrmlc.kernels.coding)
-4. Multiple dictionaries, Algorithm 1     (nrmlc.kernels.coding)
+2. Warp                                   (nrmlc.kernels.warp)
+3. Distances and nearest templates        (nrmlc.kernels.distance)
+4. Sum-to-one coding problems             (nrmlc.kernels.coding)
+5. Multiple dictionaries, Algorithm 1     (nrmlc.kernels.coding)
 """
 from __future__ import annotations
 
@@ -55,7 +59,36 @@ def make_problem(seed: int, n_candidates: int = 40, n_templates: int = 60, dim: 
 
 
 # ===========================================================================
-# 2. Distances and nearest templates
+# 2. Warp
+# ===========================================================================
+
+
+def warp_patches_reference(frame, affines, patch_size=32):
+    """Bilinear sampling with border replication, then unit-norm rows (float64)."""
+    frame = np.asarray(frame, dtype=np.float64)
+    height, width = frame.shape
+    centre = (patch_size - 1) / 2.0
+    rows, cols = np.mgrid[0:patch_size, 0:patch_size].astype(np.float64)
+    grid = np.stack([cols.ravel() - centre, rows.ravel() - centre])  # (2, P*P)
+    out = np.empty((len(affines), patch_size * patch_size))
+    for k, matrix in enumerate(affines):
+        x, y = matrix[:, :2] @ grid + matrix[:, 2:]
+        x = np.clip(x, 0, width - 1)
+        y = np.clip(y, 0, height - 1)
+        x0 = np.minimum(np.floor(x).astype(int), max(width - 2, 0))
+        y0 = np.minimum(np.floor(y).astype(int), max(height - 2, 0))
+        x1 = np.minimum(x0 + 1, width - 1)
+        y1 = np.minimum(y0 + 1, height - 1)
+        fx, fy = x - x0, y - y0
+        values = (frame[y0, x0] * (1 - fx) * (1 - fy) + frame[y0, x1] * fx * (1 - fy)
+                  + frame[y1, x0] * (1 - fx) * fy + frame[y1, x1] * fx * fy)
+        norm = np.linalg.norm(values)
+        out[k] = values / norm if norm > 1e-12 else 1.0 / patch_size
+    return out
+
+
+# ===========================================================================
+# 3. Distances and nearest templates
 # ===========================================================================
 
 
@@ -78,7 +111,7 @@ def reference_nearest(sq_distances: np.ndarray, k: int):
 
 
 # ===========================================================================
-# 3. Sum-to-one coding problems
+# 4. Sum-to-one coding problems
 # ===========================================================================
 
 
@@ -198,7 +231,7 @@ def reference_encode(candidates, templates, neighbour_indices, dictionary_sizes,
 
 
 # ===========================================================================
-# 4. Multiple dictionaries, Algorithm 1
+# 5. Multiple dictionaries, Algorithm 1
 # ===========================================================================
 
 
