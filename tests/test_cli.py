@@ -106,6 +106,37 @@ def _gt(number: int, text: str):
     return breaker
 
 
+def _remove(name: str):
+    def breaker(folder: Path) -> None:
+        (folder / "img" / name).unlink()
+    return breaker
+
+
+def _copy(name: str, to: str):
+    def breaker(folder: Path) -> None:
+        shutil.copy(folder / "img" / name, folder / "img" / to)
+    return breaker
+
+
+def _link(name: str, target: str):
+    def breaker(folder: Path) -> None:
+        (folder / "img" / name).symlink_to(target)
+    return breaker
+
+
+def _all_frames(image: np.ndarray):
+    def breaker(folder: Path) -> None:
+        for file in (folder / "img").iterdir():
+            assert cv2.imwrite(str(file), image)
+    return breaker
+
+
+def _gt_bytes(data: bytes):
+    def breaker(folder: Path) -> None:
+        (folder / "groundtruth_rect.txt").write_bytes(data)
+    return breaker
+
+
 def _as_file(folder: Path) -> None:
     shutil.rmtree(folder)
     folder.write_text("not a folder")
@@ -163,13 +194,38 @@ BAD_INPUT = {
                                                        "--groundtruth", "{seq}/groundtruth_rect.txt"],
                                  r"groundtruth_rect\.txt:2: expected 4 numbers"),
     "list-missing-root": (_nothing, ["list", "{seq}/nowhere"], r"nowhere: data root not found"),
+    # second round (issue 12)
+    "frame-gap": (_remove("0004.png"), [], r"img: frame numbers jump from 0003\.png to 0005\.png \(frame 4 missing\)"),
+    "frame-duplicate": (_copy("0003.png", "0003.jpg"), [], r"img: 0003\.(jpg|png) and 0003\.(jpg|png) have the same"),
+    "frame-patterns": (_copy("0003.png", "thumb.png"), [], r"img: frame names follow different patterns"),
+    "frame-dangling-link": (_link("0009.png", "gone.png"), [], r"0009\.png: broken symbolic link"),
+    "frame-link-loop": (_link("0009.png", "0009.png"), [], r"0009\.png: symbolic link loop"),
+    "frame-1x1": (_all_frames(np.zeros((1, 1), np.uint8)), [], r"0001\.png: image is 1x1 \(HxW\); frames must be"),
+    "gt-underscores": (_gt(3, "1_3_2,20,30,30"), [], r"groundtruth_rect\.txt:3: not a number in '1_3_2,20,30,30'"),
+    "gt-absurd": (_gt(3, "1e200,20,30,30"), [], r"groundtruth_rect\.txt:3: value beyond 1e\+09 px"),
+    "gt-binary": (_gt_bytes(b"1,2,3,4\n\xff\xfe\xfa\n"), [], r"groundtruth_rect\.txt: not a text file"),
+    "target-zero": (_nothing, ["--target", "0"], r"--target must be >= 1, got 0"),
+    "video-extension": (_nothing, ["--video", "{seq}/../v.xyz"], r"--video .*v\.xyz: unknown video extension '\.xyz'"),
+    "video-no-extension": (_nothing, ["--video", "{seq}/../video"], r"unknown video extension '\(none\)'"),
+    "out-is-groundtruth": (_nothing, ["track", "{seq}", "--out", "{seq}/groundtruth_rect.txt"],
+                           r"--out \S*groundtruth_rect\.txt: is an input of this run"),
+    "synth-count-zero": (_nothing, ["synth", "--out", "{seq}/../synth", "--count", "0"], r"--count must be in 1\.\.1000, got 0"),
+    "synth-count-negative": (_nothing, ["synth", "--out", "{seq}/../synth", "--count", "-3"], r"--count must be in 1\.\.1000, got -3"),
+    "synth-seed-negative": (_nothing, ["synth", "--out", "{seq}/../synth", "--seed", "-1"], r"--seed must be in 0\.\."),
+    "synth-one-frame": (_nothing, ["synth", "--out", "{seq}/../synth", "--frames", "1"], r"--frames must be in 2\.\."),
+    "synth-out-is-a-file": (_nothing, ["synth", "--out", "{seq}/groundtruth_rect.txt"], r"is a file, not a folder"),
+    "evaluate-absurd-groundtruth": (_gt(3, "1e200,1e200,1e200,1e200"), ["evaluate", "--results", "{seq}/groundtruth_rect.txt",
+                                                                       "--groundtruth", "{seq}/groundtruth_rect.txt"],
+                                    r"groundtruth_rect\.txt:3: value beyond"),
 }
 
 
 def case_argv(args: list[str], seq: Path, out: Path) -> list[str]:
     args = [a.replace("{seq}", str(seq)) for a in args]
-    if args and args[0] in ("track", "evaluate", "list"):
-        return args if args[0] != "track" else [*args, "--out", str(out), *FAST]
+    if args and args[0] in ("track", "evaluate", "list", "synth"):
+        if args[0] != "track" or "--out" in args:
+            return args if args[0] != "track" else [*args, *FAST]
+        return [*args, "--out", str(out), *FAST]
     return ["track", str(seq), "--out", str(out), *FAST, *args]
 
 
@@ -228,6 +284,23 @@ def test_short_groundtruth_warns_and_evaluates_annotated_frames(seq, tmp_path, c
     with pytest.warns(UserWarning, match=r"5 ground-truth boxes for 8 result boxes; only the first 5"):
         code, out, _ = run_main(["evaluate", "--results", out_file, "--groundtruth", path, "--json"], capsys)
     assert code == 0 and '"n_frames": 4' in out  # frames 2..5 (frame 1 is the given box)
+
+
+@pytest.mark.filterwarnings("ignore:initial box .* is partly outside:UserWarning")
+@pytest.mark.parametrize("form", [["--init-box", "-4,-2,20,20"], ["--init-box=-4,-2,20,20"]], ids=["space", "equals"])
+def test_negative_initial_box_needs_no_equals_sign(form, seq, tmp_path, capsys):
+    out_file = tmp_path / "r.txt"
+    code, _, err = run_main(["track", seq, "--out", out_file, *form, "--frames", "2", *FAST], capsys)
+    assert code == 0, err
+    assert out_file.read_text().splitlines()[0] == "1,1,15,17"
+
+
+def test_synth_writes_what_list_reads(tmp_path, capsys):
+    code, out, err = run_main(["synth", "--out", tmp_path / "s", "--frames", "3", "--count", "2", "--seed", "4"], capsys)
+    assert code == 0, err
+    assert len(out.splitlines()) == 2
+    code, out, err = run_main(["list", tmp_path / "s"], capsys)
+    assert code == 0 and "synth-01" in out and "synth-02" in out, err
 
 
 def test_initial_box_partly_outside_is_clipped(seq, tmp_path, capsys):

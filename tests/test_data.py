@@ -1,6 +1,7 @@
 """Tests for nrmlc.data: OTB folders, sparse-tracker packs, Sequence."""
 from __future__ import annotations
 
+import os
 import warnings
 from pathlib import Path
 
@@ -372,3 +373,180 @@ def test_real_jogging_by_name(real_data_root):
     jogging = open_sequence(real_data_root / "Jogging-2")
     assert jogging.name == "Jogging-2" and jogging.groundtruth_path.name == "groundtruth_rect.2.txt"
     assert isinstance(jogging, Sequence)
+
+
+# ------------------------------------------------ frame order and frame sets
+def test_frame_number_anywhere_in_the_name(tmp_path):
+    names = [f"{k}_cam0.png" for k in range(1, 21)]
+    folder = make_sequence_folder(tmp_path / "Seq", names=names[::-1])
+    assert [p.name for p in open_sequence(folder).image_paths] == names
+
+
+@pytest.mark.parametrize("names", [
+    [f"img{k:03d}.jpg" for k in range(7, 12)],  # any start number, a prefix
+    [f"frame_{k}_t{k * 40}.png" for k in range(1, 5)],  # two numbers that agree on the order
+    [f"{k:04d}.png" for k in (1, 2)] + ["0003.jpg", "0004.bmp"],  # mixed formats
+], ids=["prefix-start-7", "two-agreeing-numbers", "mixed-formats"])
+def test_accepted_frame_sets(tmp_path, names):
+    folder = make_sequence_folder(tmp_path / "Seq", names=names)
+    assert [p.name for p in open_sequence(folder).image_paths] == names
+
+
+def test_hidden_files_are_ignored(tmp_path):
+    folder = make_sequence_folder(tmp_path / "Seq", n_frames=3)
+    (folder / "img" / "._0002.png").write_bytes(b"resource fork")
+    assert len(open_sequence(folder)) == 3
+
+
+def _symlink(target: str):
+    def make(folder: Path) -> None:
+        (folder / "img" / "0004.png").symlink_to(target)
+    return make
+
+
+def _names(*names):
+    def make(folder: Path) -> None:
+        for name in names:
+            assert cv2.imwrite(str(folder / "img" / name), np.zeros(FRAME_SHAPE, np.uint8))
+    return make
+
+
+def _fifo(folder: Path) -> None:
+    os.mkfifo(folder / "img" / "0004.png")
+
+
+BAD_FRAME_SETS = {
+    "duplicate-number": (_names("0003.jpg"), r"img: 0003\.(jpg|png) and 0003\.(jpg|png) have the same frame number 3"),
+    "duplicate-padding": (_names("3.png"), r"have the same frame number 3"),
+    "gap": (_names("0005.png"), r"img: frame numbers jump from 0003\.png to 0005\.png \(frame 4 missing\)"),
+    "long-gap": (_names("0009.png"), r"jump from 0003\.png to 0009\.png \(frames 4-8 missing\)"),
+    "two-patterns": (_names("frame0004.png"), r"img: frame names follow different patterns"),
+    "no-number": (_names("cover.png"), r"img: frame names follow different patterns"),
+    "disagreeing-numbers": (None, r"several numbers change .* disagree on the order"),
+    "dangling-link": (_symlink("missing.png"), r"0004\.png: broken symbolic link"),
+    "looping-link": (_symlink("0004.png"), r"0004\.png: symbolic link loop"),
+    "folder-named-as-image": (lambda f: (f / "img" / "0004.png").mkdir(), r"0004\.png: not a regular file"),
+    "fifo-named-as-image": (_fifo, r"0004\.png: not a regular file"),
+}
+
+
+@pytest.mark.parametrize("name", list(BAD_FRAME_SETS))
+def test_ambiguous_frame_sets_are_refused(tmp_path, name):
+    breaker, message = BAD_FRAME_SETS[name]
+    if breaker is None:
+        folder = make_sequence_folder(tmp_path / "Seq", names=["a1_b2.png", "a2_b1.png", "a3_b3.png"])
+    else:
+        folder = make_sequence_folder(tmp_path / "Seq", n_frames=3)
+        breaker(folder)
+    with pytest.raises(DataError, match=message):
+        open_sequence(folder)
+
+
+def test_one_by_one_frame_names_the_file(tmp_path):
+    folder = make_sequence_folder(tmp_path / "Seq", n_frames=2, images=[np.zeros((1, 1), np.uint8)] * 2)
+    with pytest.raises(DataError, match=r"0001\.png: image is 1x1 \(HxW\); frames must be at least 2x2"):
+        open_sequence(folder)
+
+
+@pytest.mark.parametrize("box", ["1,2,3,4", {"x": 1, "y": 2, "w": 3, "h": 4}, b"1234", [1, 2, "three", 4]],
+                         ids=["str", "dict", "bytes", "text-inside"])
+def test_initial_box_of_the_wrong_type(tmp_path, box):
+    folder = make_sequence_folder(tmp_path / "Seq", n_frames=2)
+    with pytest.raises(ParameterError, match="initial box must be 4 finite numbers"):
+        open_sequence(folder, init_box=box)
+    with pytest.raises(ParameterError, match="initial box must be 4 finite numbers"):
+        open_sequence(folder).with_init_box(box)
+
+
+# ------------------------------------------------ ground-truth text
+@pytest.mark.parametrize("encoding", ["utf-8-sig", "utf-16", "utf-16-le", "utf-16-be"])
+def test_groundtruth_encodings(tmp_path, encoding):
+    folder = make_sequence_folder(tmp_path / "Seq", n_frames=2, groundtruth=None)
+    (folder / "groundtruth_rect.txt").write_bytes("1,2,3,4\r\n5,6,7,8\r\n".encode(encoding))
+    np.testing.assert_array_equal(open_sequence(folder).groundtruth, [[1, 2, 3, 4], [5, 6, 7, 8]])
+
+
+@pytest.mark.parametrize("line, message", [
+    ("1_3_2,2,3,4", r":2: not a number in '1_3_2,2,3,4'"),
+    ("\uff11,2,3,4", r":2: not a number"),  # a full-width digit
+    ("infinity,2,3,4", r":2: not a number"),
+    ("0x10,2,3,4", r":2: not a number"),
+    ("1e10,2,3,4", r":2: value beyond 1e\+09 px"),
+    ("1,2,3,1e200", r":2: value beyond"),
+], ids=["underscores", "full-width", "infinity-word", "hex", "huge", "1e200"])
+def test_groundtruth_numbers_annotation_tools_do_not_write(tmp_path, line, message):
+    folder = make_sequence_folder(tmp_path / "Seq", n_frames=2, groundtruth=f"1,2,3,4\n{line}\n")
+    with pytest.raises(DataError, match=r"groundtruth_rect\.txt" + message):
+        open_sequence(folder)
+
+
+def test_groundtruth_not_text(tmp_path):
+    folder = make_sequence_folder(tmp_path / "Seq", n_frames=2, groundtruth=None)
+    (folder / "groundtruth_rect.txt").write_bytes(b"1,2,3,4\n\xff\xd8\xff\xe0 jpeg?\n")
+    with pytest.raises(DataError, match=r"groundtruth_rect\.txt: not a text file"):
+        open_sequence(folder)
+
+
+def test_box_file_that_is_not_a_regular_file(tmp_path):
+    (tmp_path / "gt.txt").mkdir()
+    with pytest.raises(DataError, match=r"gt\.txt: box file is not a regular file"):
+        read_box_file(tmp_path / "gt.txt")
+    os.mkfifo(tmp_path / "fifo.txt")  # would block a plain open() forever
+    with pytest.raises(DataError, match=r"fifo\.txt: box file is not a regular file"):
+        read_box_file(tmp_path / "fifo.txt")
+
+
+def test_predictions_keep_failed_rows(tmp_path):
+    path = tmp_path / "r.txt"
+    path.write_text("1,2,3,4\ninf,2,3,4\n1e200,1e200,1e200,1e200\n5,6,-1,0\n0,0,0,0\n")
+    boxes = read_box_file(path, predictions=True)
+    assert np.isinf(boxes[1, 0]) and boxes[2, 0] == 1e200 and boxes[3, 2] == -1 and np.isnan(boxes[4]).all()
+    with pytest.raises(DataError, match=r"r\.txt:2: infinite value"):
+        read_box_file(path)
+
+
+# ------------------------------------------------ sparse packs, checked
+def test_sparsepack_checks(tmp_path):
+    folder = make_sequence_folder(tmp_path / "Pack", n_frames=3, groundtruth=None)
+    box = np.array([[1.0, 1, 3, 3, 1], [1.0, 4, 4, 1, 1]])
+
+    def pack(frame_index, corners, info="8 6 3"):
+        cells = np.empty((1, len(corners)), dtype=object)
+        for k, c in enumerate(corners):
+            cells[0, k] = c
+        scipy.io.savemat(str(folder / "pack_gt.mat"), {"frameIndex": np.array([frame_index]), "gtCornersAll": cells})
+        (folder / "datainfo.txt").write_text(info)
+
+    pack([1.0, 2.5], [box, box])
+    with pytest.raises(DataError, match=r"pack_gt\.mat: frameIndex 2\.5 is not an integer"):
+        open_sequence(folder)
+    pack([1, 2], [box, np.full((2, 5), np.nan)])
+    with pytest.raises(DataError, match=r"pack_gt\.mat: keyframe 2: NaN or infinite corner coordinates"):
+        open_sequence(folder)
+    pack([1, 2], [box, np.array(["1,2,3", "4,5,6"])])
+    with pytest.raises(DataError, match=r"pack_gt\.mat: keyframe 2: corners must be numbers"):
+        open_sequence(folder)
+    pack([1, 1], [box, box])
+    with pytest.raises(DataError, match=r"keyframe 1 appears twice"):
+        open_sequence(folder)
+    pack([1], [box], info="8 6 1000000000000")
+    with pytest.raises(DataError, match=r"datainfo\.txt: implausible size 8x6 or frame count 1000000000000"):
+        open_sequence(folder)
+    pack([1], [box], info="8 6 5")
+    with pytest.raises(DataError, match=r"datainfo\.txt: says 5 frames but the img folder holds 3"):
+        open_sequence(folder)
+    pack([1], [box], info="8.5 6 3")
+    with pytest.raises(DataError, match=r"datainfo\.txt: expected 3 positive integers"):
+        open_sequence(folder)
+    pack([1], [box], info="8.0 6 3")  # MATLAB may write integers this way
+    np.testing.assert_array_equal(open_sequence(folder).groundtruth[0], [1, 1, 2, 3])
+
+
+def test_synthetic_suite_arguments():
+    from nrmlc.data import synthetic_suite
+
+    for kwargs, name in [(dict(n_sequences=0), "n_sequences"), (dict(n_sequences=-3), "n_sequences"),
+                         (dict(seed=-1), "seed"), (dict(n_frames=1), "n_frames"), (dict(n_frames=10**12), "n_frames"),
+                         (dict(n_sequences=2.0), "n_sequences")]:
+        with pytest.raises(ParameterError, match=f"synthetic_suite: {name} must be an integer"):
+            synthetic_suite(**kwargs)

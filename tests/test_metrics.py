@@ -236,6 +236,36 @@ def test_nan_prediction_is_a_failure():
     assert ev.mean_center_error == 0.0  # over frames with a prediction
 
 
+@pytest.mark.parametrize("row", [
+    [np.inf, 10, 20, 20], [10, 10, -np.inf, 20], [1e200, 1e200, 1e200, 1e200], [10, 10, 2e9, 20], [-1e10, 10, 20, 20],
+], ids=["inf-x", "-inf-w", "1e200", "huge-w", "far-left"])
+def test_non_finite_or_absurd_prediction_is_a_failed_frame(row):
+    groundtruth = np.array([[10, 10, 20, 20]] * 3, dtype=float)
+    predicted = groundtruth.copy()
+    predicted[1] = row
+    result = evaluate(predicted, groundtruth)
+    assert result.n_missing == 1 and result.n_frames == 2
+    assert result.overlaps.tolist() == [0.0, 1.0]
+    assert result.center_errors[0] == np.inf and result.center_errors[1] == 0.0
+    # Counted the same on both curves: it fails every threshold of each.
+    assert result.precision_20 == 0.5 and result.precision[-1] == 0.5 and result.success[0] == 0.5
+    assert result.mean_center_error == 0.0  # over the frames with a prediction
+
+
+def test_absurd_groundtruth_is_refused():
+    groundtruth = np.array([[10, 10, 20, 20], [1e200, 1e200, 1e200, 1e200]], dtype=float)
+    with pytest.raises(DataError, match=r"groundtruth row 2: value beyond 1e\+09 px"):
+        evaluate(groundtruth, groundtruth)
+
+
+def test_evaluate_files_scores_failed_rows_of_a_result_file(tmp_path):
+    (tmp_path / "gt.txt").write_text("10,10,20,20\n" * 4)
+    (tmp_path / "r.txt").write_text("10,10,20,20\ninf,inf,inf,inf\n1e200,1e200,1e200,1e200\n10,10,20,20\n")
+    result = evaluate_files(tmp_path / "r.txt", tmp_path / "gt.txt")
+    assert result.n_missing == 2 and result.overlaps.tolist() == [0.0, 0.0, 1.0]
+    assert result.precision_20 == pytest.approx(1 / 3) and result.success_auc == pytest.approx(1 / 3 * 20 / 21)
+
+
 def test_all_predictions_missing():
     pred = np.full((4, 4), np.nan)
     ev = evaluate(pred, GT)

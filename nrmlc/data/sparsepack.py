@@ -153,7 +153,7 @@ def read_sparsepack_groundtruth(folder: str | os.PathLike, n_images: int | None 
     seen = set()
     for raw_index, corners in zip(frame_indices, corner_cells):
         if not np.isfinite(raw_index) or raw_index != np.round(raw_index):
-            raise DataError(f"{mat_path}: frameIndex {raw_index!r} is not an integer")
+            raise DataError(f"{mat_path}: frameIndex {raw_index.item()!r} is not an integer")
         frame_index = int(raw_index)
         if not 1 <= frame_index <= n_frames:
             raise DataError(f"{mat_path}: keyframe {frame_index} outside 1..{n_frames}")
