@@ -17,7 +17,17 @@ import warnings
 
 def _cmd_evaluate(args: argparse.Namespace) -> int:
     from nrmlc.data import read_box_file
+    from nrmlc.errors import ParameterError
     from nrmlc.metrics import evaluate_files
+
+    if args.data is not None:  # result folders of any number of trackers (nrmlc/compare.py)
+        from nrmlc.compare import run_evaluate_folders
+
+        return run_evaluate_folders(args)
+    if args.groundtruth is None or len(args.results) != 1:
+        raise ParameterError("evaluate: give one --results R.txt with --groundtruth G.txt, "
+                             "or result folders with --data DATA")
+    args.results = args.results[0]
 
     n_predicted = len(read_box_file(args.results, predictions=True))
     n_annotated = len(read_box_file(args.groundtruth))
@@ -71,9 +81,15 @@ def _add_track(commands) -> None:
     add_track_command(commands)
 
 
+def _add_benchmark(commands) -> None:
+    from nrmlc.benchmark import add_benchmark_command
+
+    add_benchmark_command(commands)
+
+
 #: Functions that each add one more subcommand (``add_parser`` + ``set_defaults(run=...)``).
 #: A new command is a function here; its module is imported when the parser is built.
-_EXTRA_COMMANDS = [_add_track]
+_EXTRA_COMMANDS = [_add_track, _add_benchmark]
 
 # A value that starts with a minus sign and a digit, e.g. ``--init-box -5,10,20,20``:
 # argparse takes it for an option unless it is a plain negative number.
@@ -108,11 +124,16 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--debug", action="store_true", help="show tracebacks instead of one-line errors")
     commands = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
 
-    evaluate = commands.add_parser("evaluate", help="score a result file against ground truth (CLE, overlap, AUC, precision@20)")
-    evaluate.add_argument("--results", required=True, metavar="R.txt", help="tracker boxes, one x,y,w,h line per frame")
-    evaluate.add_argument("--groundtruth", required=True, metavar="G.txt", help="ground-truth boxes (OTB groundtruth_rect.txt)")
+    evaluate = commands.add_parser("evaluate", help="score a result file, or several trackers' result folders, against "
+                                   "ground truth (CLE, overlap, AUC, precision@20; OTB plots)")
+    evaluate.add_argument("--results", required=True, nargs="+", metavar="R.txt|DIR",
+                          help="tracker boxes, one x,y,w,h line per frame; with --data, result folders")
+    evaluate.add_argument("--groundtruth", metavar="G.txt", help="ground-truth boxes (OTB groundtruth_rect.txt)")
     evaluate.add_argument("--json", action="store_true", help="print the summary as JSON")
     evaluate.add_argument("--include-first", action="store_true", help="also score frame 1 (the given box)")
+    from nrmlc.compare import add_evaluate_arguments
+
+    add_evaluate_arguments(evaluate)
     evaluate.set_defaults(run=_cmd_evaluate)
 
     listing = commands.add_parser("list", help="list the sequences found under a data root")
@@ -180,6 +201,13 @@ def _run(args: argparse.Namespace) -> int:
     except KeyboardInterrupt:
         print("interrupted", file=sys.stderr)
         return 130
+    except BrokenPipeError:
+        # The reader of our output went away (``... | head``): stop quietly, as Unix tools do.
+        try:
+            sys.stdout = open(os.devnull, "w")
+        except OSError:
+            pass
+        return 141
     except OSError as error:
         if args.debug:
             raise

@@ -20,8 +20,10 @@ _SEQUENCE_FILE = re.compile(r"^(groundtruth_rect(\.\d+)?\.txt|datainfo\.txt|.*_g
 
 
 def add_track_command(commands) -> None:
-    track = commands.add_parser("track", help="track the target of a sequence folder with NRMLC")
-    track.add_argument("sequence", metavar="SEQ_DIR", help="sequence folder (OTB or sparse-tracker pack layout)")
+    track = commands.add_parser("track", help="track the target of a sequence folder or a video file with NRMLC")
+    track.add_argument("sequence", metavar="SEQ_DIR|VIDEO",
+                       help="sequence folder (OTB or sparse-tracker pack layout, or a folder of frames), or a "
+                            "video file OpenCV reads (.mp4, .avi, ...; needs --init-box)")
     track.add_argument("--out", required=True, metavar="RESULT.txt", help="output boxes, one x,y,w,h line per frame")
     track.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
     track.add_argument("--particles", type=int, help="number of particles (default 600)")
@@ -47,6 +49,8 @@ def check_outputs(args: argparse.Namespace, sequence) -> None:
     from nrmlc.errors import ParameterError
 
     inputs = list(sequence.image_paths or [])
+    if sequence.path is not None and sequence.path.is_file():  # a video file
+        inputs.append(sequence.path)
     if sequence.groundtruth_path is not None:
         inputs.append(sequence.groundtruth_path)
     if sequence.path is not None:

@@ -45,6 +45,11 @@ def _target(path: str | os.PathLike) -> Path:
     return Path(os.path.realpath(os.fspath(path)))
 
 
+def _prefix(name: str) -> str:
+    # Short enough that a legal 255-byte file name still leaves room for ".tmp-" and the random part.
+    return f".tmp-{name[:64]}-"
+
+
 def _fsync_folder(folder: Path) -> None:
     # Makes the rename itself durable; not every file system allows it (best effort).
     try:
@@ -67,7 +72,7 @@ def temporary_for(path: str | os.PathLike) -> Path:
     """
     target = _target(path)
     target.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".tmp-{target.stem}-", suffix=target.suffix, dir=target.parent)
+    fd, tmp = tempfile.mkstemp(prefix=_prefix(target.stem), suffix=target.suffix, dir=target.parent)
     os.close(fd)
     # mkstemp creates 0600 files; give results the usual umask-based permissions.
     os.chmod(tmp, 0o666 & ~_current_umask())
@@ -95,7 +100,7 @@ def discard(tmp: str | os.PathLike) -> None:
 def _atomic(path: str | os.PathLike, write: Callable[[Any], None], mode: str) -> Path:
     target = _target(path)
     target.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".tmp-{target.name}-", dir=target.parent)
+    fd, tmp = tempfile.mkstemp(prefix=_prefix(target.name), dir=target.parent)
     # mkstemp creates 0600 files; give results the usual umask-based permissions.
     os.chmod(tmp, 0o666 & ~_current_umask())
     try:
@@ -182,7 +187,7 @@ def check_output(path: str | os.PathLike, option: str, inputs: Iterable[str | os
     if not folder.is_dir():
         raise ParameterError(f"{where}: {folder} is a file, not a folder")
     try:
-        fd, probe = tempfile.mkstemp(prefix=f".tmp-{target.name}-", dir=folder)
+        fd, probe = tempfile.mkstemp(prefix=_prefix(target.name), dir=folder)
     except OSError as exc:
         raise ParameterError(f"{where}: cannot write to folder {folder} ({exc.strerror or exc})") from None
     os.close(fd)

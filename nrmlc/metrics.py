@@ -110,7 +110,10 @@ PRECISION_AT = 20.0
 
 
 def _boxes(boxes, name: str) -> np.ndarray:
-    arr = np.asarray(boxes, dtype=np.float64)
+    try:
+        arr = np.asarray(boxes, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise ParameterError(f"{name}: expected numeric boxes of shape (n, 4), got {type(boxes).__name__}") from None
     if arr.ndim not in (1, 2) or arr.shape[-1] != 4:
         raise ParameterError(f"{name}: expected boxes of shape (n, 4) or (4,), got shape {arr.shape}")
     return arr

@@ -15,7 +15,11 @@ Variants handled here:
   :mod:`nrmlc.data.sparsepack`): the mat file is the fallback when
   ``groundtruth_rect.txt`` is absent;
 - no ground truth at all: every box is NaN, and the caller must give the
-  initial box.
+  initial box;
+- the frames directly in the folder, without the ``img`` level (a folder
+  of frames to track with a given initial box).
+
+:func:`open_sequence` also opens a video file (:mod:`nrmlc.data.video_file`).
 
 Frame order
     Frames are ordered by their frame number wherever it sits in the name
@@ -49,7 +53,8 @@ from nrmlc.data.sparsepack import (
     read_datainfo,
     read_sparsepack_groundtruth,
 )
-from nrmlc.errors import DataError
+from nrmlc.data.video_file import VideoFileSequence
+from nrmlc.errors import DataError, ParameterError
 
 IMAGE_FOLDER = "img"
 IMAGE_EXTENSIONS = (".jpg", ".jpeg", ".png", ".bmp")
@@ -126,7 +131,8 @@ def order_frames(images: SequenceType[Path]) -> list[Path]:
 
 
 def find_images(folder: str | os.PathLike) -> list[Path]:
-    """Image files of ``folder/img`` in frame order (see the module docstring).
+    """Image files of ``folder/img`` (or of ``folder`` itself when it holds the frames) in frame order
+    (see the module docstring).
 
     Raises
     ------
@@ -136,6 +142,8 @@ def find_images(folder: str | os.PathLike) -> list[Path]:
         frame order is not certain (:func:`order_frames`).
     """
     image_folder = Path(folder) / IMAGE_FOLDER
+    if not image_folder.is_dir() and any(p.suffix.lower() in IMAGE_EXTENSIONS for p in Path(folder).iterdir()):
+        image_folder = Path(folder)  # a plain folder of frames, without the 'img' level
     if not image_folder.is_dir():
         raise DataError(f"{folder}: no '{IMAGE_FOLDER}' folder with the frames")
     images = sorted(
@@ -150,10 +158,13 @@ def find_images(folder: str | os.PathLike) -> list[Path]:
 def find_target_groundtruths(folder: str | os.PathLike) -> dict[int, Path]:
     """Per-target ground-truth files ``groundtruth_rect.<k>.txt``, keyed by ``k``."""
     found = {}
-    for path in Path(folder).iterdir():
+    for path in sorted(Path(folder).iterdir()):
         match = _TARGET_GROUNDTRUTH.match(path.name)
         if match and path.is_file():
-            found[int(match.group(1))] = path
+            target = int(match.group(1))
+            if target in found:  # groundtruth_rect.1.txt and groundtruth_rect.01.txt
+                raise DataError(f"{folder}: {found[target].name} and {path.name} are both target {target}; keep one")
+            found[target] = path
     return dict(sorted(found.items()))
 
 
@@ -178,8 +189,9 @@ def open_sequence(
 
     Parameters
     ----------
-    path : the sequence folder; a name like ``root/Jogging-2`` (no such
-        folder) means target 2 of ``root/Jogging``.
+    path : the sequence folder, or a video file (see
+        :class:`~nrmlc.data.video_file.VideoFileSequence`); a name like
+        ``root/Jogging-2`` (no such folder) means target 2 of ``root/Jogging``.
     target : for multi-target folders, which target (1, 2, ...); default
         the first one.
     init_box : (4,) 1-based ``x, y, w, h`` overriding the first box (needed
@@ -195,7 +207,15 @@ def open_sequence(
         Folder missing or not a folder, no images, first image unreadable,
         unknown target, malformed ground truth (the message names the file).
     """
+    if not isinstance(path, (str, os.PathLike)):
+        raise ParameterError(f"open_sequence: path must be a str or os.PathLike, got {type(path).__name__}")
+    if target is not None and (isinstance(target, bool) or not isinstance(target, (int, np.integer)) or target < 1):
+        raise ParameterError(f"open_sequence: target must be an integer >= 1, got {target!r}")
     folder = Path(path)
+    if folder.is_file():  # a video file (.mp4, .avi, ...): nrmlc/data/video_file.py
+        if target is not None:
+            raise DataError(f"{folder}: a video file has no per-target ground truth; target={target} is for folders")
+        return VideoFileSequence(folder, init_box=init_box)
     if not folder.exists():
         split = _split_target_name(folder)
         if split is None:
@@ -208,7 +228,9 @@ def open_sequence(
         raise DataError(f"{folder}: not a folder")
     images = find_images(folder)
 
-    name = folder.name
+    # "." or ".." (tracking from inside the folder) has no name of its own: take the real folder's.
+    base_name = folder.name if folder.name not in ("", ".", "..") else os.path.basename(os.path.abspath(folder))
+    name = base_name
     groundtruth_path: Path | None = None
     targets = find_target_groundtruths(folder)
     if target is not None:
@@ -216,13 +238,13 @@ def open_sequence(
             available = ", ".join(str(k) for k in targets) or "none (single-target folder)"
             raise DataError(f"{folder}: no groundtruth_rect.{target}.txt (targets: {available})")
         groundtruth_path = targets[target]
-        name = f"{folder.name}-{target}"
+        name = f"{base_name}-{target}"
     elif (folder / GROUNDTRUTH_NAME).is_file():
         groundtruth_path = folder / GROUNDTRUTH_NAME
     elif targets:
         first_target = next(iter(targets))
         groundtruth_path = targets[first_target]
-        name = f"{folder.name}-{first_target}"
+        name = f"{base_name}-{first_target}"
 
     from_sparsepack = groundtruth_path is None and is_sparsepack(folder)
     if groundtruth_path is not None:

@@ -11,6 +11,7 @@ Frames are read on demand, never cached, so a long sequence costs no memory.
 from __future__ import annotations
 
 import copy
+import operator
 import os
 import warnings
 from pathlib import Path
@@ -137,11 +138,13 @@ class Sequence:
         if self._init_box_override is not None:
             return self._init_box_override.copy()
         if not self._has_groundtruth:
-            raise DataError(f"{self._where}: no ground truth file; give the initial box (init_box=x,y,w,h)")
+            raise DataError(f"{self._where}: no ground truth file; give the initial box "
+                            f"(--init-box X,Y,W,H on the command line, init_box=(x, y, w, h) in Python)")
         source = self.groundtruth_path if self.groundtruth_path is not None else self._where
         box = self._groundtruth[0]
         if np.isnan(box).any():
-            raise DataError(f"{source}: frame 1 is not annotated (0,0,0,0 or NaN); give the initial box")
+            raise DataError(f"{source}: frame 1 is not annotated (0,0,0,0 or NaN); "
+                            f"give the initial box (--init-box X,Y,W,H)")
         if box[2] <= 0 or box[3] <= 0:
             raise DataError(f"{source}: frame 1 box has a non-positive size {box.tolist()}")
         return box.copy()
@@ -180,7 +183,7 @@ class Sequence:
         return str(self.image_paths[index]) if self.image_paths is not None else f"{self.name} frame {index + 1}"
 
     def _check_index(self, index: int) -> int:
-        index = int(index)
+        index = operator.index(index)  # 1.5 or "2" is a TypeError, not frame 1 or 2
         if index < 0:
             index += self._n_frames
         if not 0 <= index < self._n_frames:

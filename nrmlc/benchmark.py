@@ -1,0 +1,333 @@
+"""``python -m nrmlc benchmark``: track every sequence of a data root into OTB result files.
+
+Layout of the output folder (``--out``, e.g. ``results/NRMLC``)::
+
+    results/NRMLC/
+        Car4.txt                one x,y,w,h line per frame (1-based, OTB), the first seed
+        Caviar1.txt ...
+        seeds/<seed>/Car4.txt   every other seed (only when there are several)
+        summary.csv             one row per (sequence, seed): overlap, CLE, AUC, precision@20, fps
+        summary.json            the same, plus the mean over seeds per sequence and over sequences
+        benchmark.json          settings, and one entry per finished (sequence, seed) run
+
+The top-level ``<Seq>.txt`` files are what the OTB toolkits read (got10k's
+``ExperimentOTB``, pysot, ``python -m nrmlc evaluate --results results/NRMLC``);
+the first seed of the first invocation is the *primary* seed stored there, and
+it stays so on later invocations.
+
+Resuming: a run is finished when its entry is in ``benchmark.json`` and its
+result file exists; a rerun skips it, whatever changed in the code since.
+The runs themselves go through :class:`nrmlc.runner.RunCache` (``--cache``,
+default ``.cache/runs``), so a run interrupted before its file was written
+is loaded from the cache, not recomputed. All files are written atomically.
+
+Nothing the user has is overwritten: an existing folder with ``.txt`` files
+but no ``benchmark.json`` is refused, and so is a folder made with other
+tracker parameters, another frame cap or another data root (choose another
+``--out``).
+"""
+from __future__ import annotations
+
+import argparse
+import csv
+import io as text_io
+import json
+import math
+import re
+import sys
+from pathlib import Path
+
+import numpy as np
+
+from nrmlc import io
+from nrmlc.errors import DataError, ParameterError
+
+MANIFEST_NAME = "benchmark.json"
+SUMMARY_CSV = "summary.csv"
+SUMMARY_JSON = "summary.json"
+SEEDS_FOLDER = "seeds"
+#: Per-run scores, in the order of the summary columns.
+SCORE_FIELDS = ("mean_overlap", "mean_center_error", "success_auc", "precision_20")
+_RANGE = re.compile(r"^(\d+)-(\d+)$")
+
+
+def parse_seeds(text: str) -> tuple[int, ...]:
+    """``"0-4"`` -> (0, 1, 2, 3, 4); ``"0,3,7"`` -> (0, 3, 7); ranges and lists mix (``"0-2,9"``)."""
+    seeds: list[int] = []
+    for part in (p.strip() for p in str(text).split(",")):
+        if not part:
+            continue
+        match = _RANGE.match(part)
+        if match:
+            first, last = int(match.group(1)), int(match.group(2))
+            if last < first:
+                raise ParameterError(f"--seeds {text!r}: range {part} ends before it starts")
+            seeds.extend(range(first, last + 1))
+        elif part.isdigit():
+            seeds.append(int(part))
+        else:
+            raise ParameterError(f"--seeds {text!r}: expected non-negative integers and ranges like 0-4")
+    if not seeds:
+        raise ParameterError(f"--seeds {text!r}: no seed given")
+    return tuple(dict.fromkeys(seeds))  # in order, without repeats
+
+
+def parse_names(text: str | None) -> list[str] | None:
+    """``"Car4,Caviar1"`` -> ["Car4", "Caviar1"]; None stays None."""
+    if text is None:
+        return None
+    names = [n.strip() for n in text.split(",") if n.strip()]
+    if not names:
+        raise ParameterError(f"--sequences {text!r}: no sequence name given")
+    return names
+
+
+def select_sequences(data_root, names: list[str] | None = None) -> list:
+    """The sequences of ``data_root`` (all, or those named, in the order given; case-insensitive).
+
+    Raises
+    ------
+    DataError
+        For a name that is not a sequence of the root (the message lists them).
+    """
+    from nrmlc.data import list_sequences
+
+    sequences = list_sequences(data_root)
+    if names is None:
+        return sequences
+    by_name = {s.name.lower(): s for s in sequences}
+    unknown = [n for n in names if n.lower() not in by_name]
+    if unknown:
+        raise DataError(f"{data_root}: no sequence {', '.join(unknown)} "
+                        f"(sequences: {', '.join(s.name for s in sequences)})")
+    return list({by_name[n.lower()].name: by_name[n.lower()] for n in names}.values())
+
+
+def result_file(out: Path, name: str, seed: int, primary_seed: int) -> Path:
+    """Where the boxes of ``name`` with ``seed`` go (top level for the primary seed)."""
+    folder = out if seed == primary_seed else out / SEEDS_FOLDER / str(seed)
+    return folder / f"{name}.txt"
+
+
+def _read_manifest(out: Path, settings: dict) -> dict:
+    """The folder's manifest, a new one for a new folder; refuse foreign or mismatched folders."""
+    path = out / MANIFEST_NAME
+    if path.is_file():
+        try:
+            manifest = json.loads(path.read_text())
+            stored = manifest["settings"]
+        except (ValueError, KeyError, TypeError) as exc:
+            raise DataError(f"{path}: not a benchmark manifest ({exc})") from None
+        details = []
+        for key in sorted(set(stored) | set(settings)):
+            old, new = stored.get(key), settings.get(key)
+            if key == "params":
+                # Fields added to TrackerParams since (or dropped) are not a difference.
+                old, new = old or {}, new or {}
+                details += [f"{f}={old[f]!r} there, {new[f]!r} now"
+                            for f in sorted(set(old) & set(new)) if old[f] != new[f]]
+            elif old != new:
+                details.append(f"{key}={old!r} there, {new!r} now")
+        if details:
+            raise DataError(f"{out}: made with other settings ({'; '.join(details)}); "
+                            f"choose another --out to keep both")
+        manifest.setdefault("runs", {})
+        return manifest
+    if out.exists() and not out.is_dir():
+        raise DataError(f"{out}: exists and is not a folder")
+    if out.is_dir() and any(out.glob("*.txt")):
+        raise DataError(f"{out}: holds .txt files but no {MANIFEST_NAME} (not made by nrmlc benchmark); "
+                        f"choose another --out, nothing there is overwritten")
+    return {"settings": settings, "primary_seed": None, "runs": {}}
+
+
+def _scores(boxes: np.ndarray, sequence) -> dict | None:
+    """OTB scores of ``boxes`` on the first ``len(boxes)`` frames, or None without ground truth there."""
+    from nrmlc.metrics import evaluate
+
+    truth = sequence.groundtruth[: len(boxes)]
+    try:
+        evaluation = evaluate(boxes, truth)
+    except DataError:  # no annotated frame after the first
+        return None
+    return evaluation.as_dict()
+
+
+def run_benchmark(data_root, out, params=None, seeds=(0,), sequences: list[str] | None = None,
+                  max_frames: int | None = None, jobs: int | None = None, executor=None, cache=None,
+                  progress: bool = True, log=None) -> dict:
+    """Track every selected (sequence, seed) that is not finished yet and write the results.
+
+    Parameters
+    ----------
+    data_root : path
+        Folder of sequences (any layout :func:`nrmlc.data.list_sequences` reads).
+    out : path
+        Output folder (see the module docstring for its layout).
+    params : TrackerParams, optional
+    seeds : sequence of int
+    sequences : list of str, optional
+        Sequence names (default: all of the root).
+    max_frames : int, optional
+        Track only the first frames of each sequence (scored on those frames).
+    jobs : int, optional
+        Worker processes (default: all cores).
+    executor : concurrent.futures.Executor, optional
+        Where to run (e.g. a Dask client's ``get_executor()``).
+    cache : nrmlc.runner.RunCache, optional
+        Run cache (default: ``.cache/runs``).
+    progress : bool
+        Progress bar on stderr.
+    log : callable(str), optional
+        Where status lines go (default: stderr).
+
+    Returns
+    -------
+    summary : dict
+        What ``summary.json`` holds.
+    """
+    from nrmlc.runner import RunCache, RunSpec, code_version
+    from nrmlc.tracker.params import TrackerParams
+
+    log = log or (lambda line: print(line, file=sys.stderr, flush=True))
+    params = TrackerParams() if params is None else params
+    if max_frames is not None and max_frames < 2:
+        raise ParameterError(f"--max-frames must be >= 2, got {max_frames}")
+    seeds = tuple(int(s) for s in seeds)
+    out = Path(out)
+    data_root = Path(data_root)
+    chosen = select_sequences(data_root, sequences)
+    settings = {"params": params.as_dict(), "max_frames": max_frames, "data": str(data_root.resolve())}
+    manifest = _read_manifest(out, json.loads(json.dumps(settings, default=str)))
+    if manifest["primary_seed"] is None:
+        manifest["primary_seed"] = seeds[0]
+    primary = int(manifest["primary_seed"])
+    runs = manifest["runs"]
+
+    def finished(name: str, seed: int) -> bool:
+        return str(seed) in runs.get(name, {}) and result_file(out, name, seed, primary).is_file()
+
+    todo = [RunSpec(s, params, seed, max_frames, label=s.name) for s in chosen for seed in seeds
+            if not finished(s.name, seed)]
+    total = len(chosen) * len(seeds)
+    log(f"benchmark: {len(chosen)} sequences x {len(seeds)} seeds -> {out}: "
+        f"{total - len(todo)} finished, {len(todo)} to run")
+    if todo:
+        cache = cache if cache is not None else RunCache()
+        version = code_version()
+        results = cache.run(todo, executor=executor, jobs=jobs, progress=progress)
+        for spec, result in zip(todo, results):
+            name = spec.sequence.name
+            io.write_boxes(result_file(out, name, spec.seed, primary), result.boxes)
+            runs.setdefault(name, {})[str(spec.seed)] = {
+                "frames": int(len(result.boxes)),
+                "fps": None if math.isnan(result.fps_tracking) else float(result.fps_tracking),
+                "scores": _scores(result.boxes, spec.sequence),
+                "code_version": version,
+            }
+            # The file first, then its entry: an entry always has its file.
+            io.write_json(out / MANIFEST_NAME, manifest)
+    summary = summarize(manifest)
+    write_summary(out, summary)
+    return summary
+
+
+def summarize(manifest: dict) -> dict:
+    """Per-run rows, per-sequence means over seeds, and means over sequences (with ground truth)."""
+    rows = []
+    for name in sorted(manifest["runs"]):
+        for seed in sorted(manifest["runs"][name], key=int):
+            entry = manifest["runs"][name][seed]
+            scores = entry.get("scores") or {}
+            rows.append({"sequence": name, "seed": int(seed), "frames": entry["frames"],
+                         "evaluated_frames": scores.get("n_frames"),
+                         **{k: scores.get(k) for k in SCORE_FIELDS}, "fps": entry.get("fps")})
+
+    def mean(values):
+        values = [v for v in values if v is not None]
+        return float(np.mean(values)) if values else None
+
+    per_sequence = {}
+    for name in sorted({r["sequence"] for r in rows}):
+        mine = [r for r in rows if r["sequence"] == name]
+        per_sequence[name] = {"seeds": [r["seed"] for r in mine],
+                              **{k: mean(r[k] for r in mine) for k in SCORE_FIELDS + ("fps",)}}
+    scored = [v for v in per_sequence.values() if v["success_auc"] is not None]
+    overall = {"sequences": len(scored), **{k: mean(v[k] for v in scored) for k in SCORE_FIELDS + ("fps",)}}
+    return {"settings": manifest["settings"], "primary_seed": manifest["primary_seed"], "runs": rows,
+            "per_sequence": per_sequence, "mean_over_sequences": overall}
+
+
+def write_summary(out: Path, summary: dict) -> None:
+    """``summary.json`` and ``summary.csv`` (one row per run) in ``out``, atomically."""
+    io.write_json(Path(out) / SUMMARY_JSON, summary)
+    buffer = text_io.StringIO()
+    columns = ["sequence", "seed", "frames", "evaluated_frames", *SCORE_FIELDS, "fps"]
+    writer = csv.DictWriter(buffer, fieldnames=columns, lineterminator="\n")
+    writer.writeheader()
+    for row in summary["runs"]:
+        writer.writerow({k: ("" if row[k] is None else row[k]) for k in columns})
+    io.write_text(Path(out) / SUMMARY_CSV, buffer.getvalue())
+
+
+def format_summary(summary: dict) -> str:
+    """Per-sequence means over seeds as a text table, and their mean."""
+
+    def cell(value, fmt):
+        return "-" if value is None else format(value, fmt)
+
+    lines = [f"{'sequence':16s} {'seeds':>5s} {'overlap':>8s} {'CLE px':>8s} {'AUC':>6s} {'P@20':>6s} {'fps':>7s}"]
+    for name, row in summary["per_sequence"].items():
+        lines.append(f"{name:16s} {len(row['seeds']):5d} {cell(row['mean_overlap'], '8.3f')} "
+                     f"{cell(row['mean_center_error'], '8.1f')} {cell(row['success_auc'], '6.3f')} "
+                     f"{cell(row['precision_20'], '6.3f')} {cell(row['fps'], '7.1f')}")
+    total = summary["mean_over_sequences"]
+    lines.append(f"{'mean of ' + str(total['sequences']):16s} {'':5s} {cell(total['mean_overlap'], '8.3f')} "
+                 f"{cell(total['mean_center_error'], '8.1f')} {cell(total['success_auc'], '6.3f')} "
+                 f"{cell(total['precision_20'], '6.3f')} {cell(total['fps'], '7.1f')}")
+    return "\n".join(lines)
+
+
+# ------------------------------------------------------------------ command line
+def add_benchmark_command(commands) -> None:
+    """Register ``benchmark`` on the subparsers of ``python -m nrmlc``."""
+    bench = commands.add_parser(
+        "benchmark", help="track every sequence of a data root into OTB result files (resumable)",
+        description="Track every sequence of DATA with NRMLC and write OTB result files "
+                    "OUT/<Seq>.txt (the first seed; other seeds in OUT/seeds/<seed>/), "
+                    "OUT/summary.csv and OUT/summary.json (overlap, CLE, AUC, precision@20, fps "
+                    "where there is ground truth). A rerun skips every finished (sequence, seed).")
+    bench.add_argument("data", metavar="DATA", help="data root: a folder of sequence folders")
+    bench.add_argument("--out", required=True, metavar="DIR", help="results folder, e.g. results/NRMLC")
+    bench.add_argument("--seeds", default="0", help="seeds, e.g. 0-4 or 0,2,5 (default 0)")
+    bench.add_argument("--sequences", metavar="A,B", help="only these sequences (default: all)")
+    bench.add_argument("--preset", help="named parameter set (TrackerParams.preset), before --param")
+    bench.add_argument("--param", action="append", default=[], metavar="NAME=VALUE",
+                       help="any tracker parameter, e.g. --param n_particles=300 (repeatable)")
+    bench.add_argument("--max-frames", type=int, metavar="N", help="track only the first N frames of each sequence")
+    bench.add_argument("--jobs", type=int, metavar="N", help="worker processes (default: all cores)")
+    bench.add_argument("--dask", metavar="ADDRESS", help="run on a Dask cluster (needs the 'distributed' package)")
+    bench.add_argument("--cache", metavar="DIR", help="run cache folder (default: .cache/runs)")
+    bench.set_defaults(run=_cmd_benchmark)
+
+
+def _cmd_benchmark(args: argparse.Namespace) -> int:
+    from nrmlc.runner import RunCache
+    from nrmlc.tracker.params import TrackerParams, parse_param_assignment
+
+    base = TrackerParams.preset(args.preset) if args.preset else TrackerParams()
+    params = base.replace(**dict(parse_param_assignment(text) for text in args.param))
+    if args.jobs is not None and args.jobs < 1:
+        raise ParameterError(f"--jobs must be >= 1, got {args.jobs}")
+    executor = None
+    if args.dask:
+        try:
+            from distributed import Client
+        except ImportError:
+            raise ParameterError("--dask needs the Dask 'distributed' package (pip install distributed)") from None
+        executor = Client(args.dask).get_executor()
+    summary = run_benchmark(args.data, args.out, params, parse_seeds(args.seeds), parse_names(args.sequences),
+                            args.max_frames, args.jobs, executor,
+                            RunCache(args.cache) if args.cache else None)
+    print(format_summary(summary))
+    return 0
