@@ -550,3 +550,39 @@ def test_synthetic_suite_arguments():
                          (dict(n_sequences=2.0), "n_sequences")]:
         with pytest.raises(ParameterError, match=f"synthetic_suite: {name} must be an integer"):
             synthetic_suite(**kwargs)
+
+
+def test_sequence_opened_as_dot_takes_the_folder_name(tmp_path, monkeypatch):
+    folder = make_sequence_folder(tmp_path / "Seq", n_frames=2)
+    monkeypatch.chdir(folder)
+    assert open_sequence(".").name == "Seq"
+    monkeypatch.chdir(folder / "img")
+    assert open_sequence("..").name == "Seq"
+
+
+def test_two_files_for_one_target(tmp_path):
+    folder = make_sequence_folder(tmp_path / "Jog", n_frames=2, groundtruth=None)
+    (folder / "groundtruth_rect.1.txt").write_text(gt_lines(2))
+    (folder / "groundtruth_rect.01.txt").write_text(gt_lines(2))
+    with pytest.raises(DataError, match=r"Jog: groundtruth_rect\.01\.txt and groundtruth_rect\.1\.txt are both target 1"):
+        open_sequence(folder)
+
+
+@pytest.mark.parametrize("kwargs, message", [
+    (dict(path=None), "path must be a str or os.PathLike, got NoneType"),
+    (dict(path=3), "path must be a str or os.PathLike, got int"),
+    (dict(target="1"), r"target must be an integer >= 1, got '1'"),
+    (dict(target=0), "target must be an integer >= 1, got 0"),
+], ids=["none", "int-path", "str-target", "zero-target"])
+def test_open_sequence_arguments(tmp_path, kwargs, message):
+    folder = make_sequence_folder(tmp_path / "Seq", n_frames=2)
+    with pytest.raises(ParameterError, match=message):
+        open_sequence(**{"path": folder, **kwargs})
+
+
+def test_frame_index_must_be_an_integer(tmp_path):
+    sequence = open_sequence(make_sequence_folder(tmp_path / "Seq", n_frames=3))
+    assert sequence.frame(np.int64(1))[0, 0] == pytest.approx(20 / 255)
+    for index in (1.5, "1", 1.0):
+        with pytest.raises(TypeError):
+            sequence.frame(index)

@@ -398,3 +398,9 @@ def test_realdata_kcf_car4_mean_overlap():
     assert ev.n_frames == 658 and ev.n_missing == 0
     # The paper's Table II gives 0.47 for KCF on Car4.
     assert 0.46 <= ev.mean_overlap <= 0.50
+
+
+@pytest.mark.parametrize("predicted", [[["a", "b", "c", "d"]], "1,2,3,4", {"x": 1}], ids=["text", "str", "dict"])
+def test_non_numeric_boxes_are_a_parameter_error(predicted):
+    with pytest.raises(ParameterError, match="predicted: expected numeric boxes"):
+        evaluate(predicted, GT)

@@ -311,3 +311,10 @@ def test_sequence_identity_is_unchanged(seq, tmp_path):
     from nrmlc.runner import sequence_identity
 
     assert sequence_identity(moved) == moved.identity
+
+
+def test_long_output_name_is_written(seq, tmp_path, capsys):
+    out = tmp_path / ("r" * 250 + ".txt")  # a legal name; the temporary name must not exceed the limit
+    code, _, err = run_main(["track", seq, "--out", out, "--frames", "2", *FAST], capsys)
+    assert code == 0, err
+    assert len(read_box_file(out)) == 2 and not temporaries(tmp_path)
