@@ -82,8 +82,11 @@ def run_track(args: argparse.Namespace) -> int:
     from nrmlc.tracker.run import track_sequence
 
     overrides = dict(parse_param_assignment(text) for text in args.param)
-    for name, value in (("n_particles", args.particles), ("coding", args.coding), ("lam", args.lam), ("beta", args.beta)):
+    for option, name, value in (("--particles", "n_particles", args.particles), ("--coding", "coding", args.coding),
+                                ("--lambda", "lam", args.lam), ("--beta", "beta", args.beta)):
         if value is not None:
+            if name in overrides and overrides[name] != value:
+                raise ParameterError(f"{option} {value} and --param {name}={overrides[name]} disagree; give one")
             overrides[name] = value
     params = TrackerParams().replace(**overrides)
     if args.frames is not None and args.frames < 1:
@@ -97,7 +100,7 @@ def run_track(args: argparse.Namespace) -> int:
     set_threads(args.threads)
     sequence = open_sequence(args.sequence, target=args.target)
     init_box = None
-    if args.init_box:
+    if args.init_box is not None:
         init_box = np.array(parse_box_line(args.init_box, "--init-box"))
     check_outputs(args, sequence)
     writer = None
