@@ -1,6 +1,9 @@
 # nrmlc: one-command set-up. Every target installs what it needs into .venv first.
-#   make figures                 all figures and tables (synthetic sequences)
+#   make figures                 all figures and tables (synthetic sequences) -> out/figures (git-ignored)
 #   make figures DATA=path       ... on real sequences (OTB or sparse-tracker layout)
+#       options: OUT=figures (the committed real-data results), SEQUENCES=Car4,Caviar1,
+#       SEEDS=5 SWEEP_SEEDS=2 ABLATION_SEEDS=1 JOBS=2 MAX_FRAMES=N ONLY=script,script
+#       PEERS=dir (default <DATA>/../peer_results) DRY_RUN=1 (print the grid and stop)
 #   make test                    the test suite (what CI runs)
 #   make theorem                 numeric checks of Theorem 1 (seconds)
 #   make bench                   kernel and tracker timings -> figures/bench.json
@@ -11,7 +14,14 @@ PY          := $(VENV)/bin/python
 DATA        ?=
 SEEDS       ?=
 SWEEP_SEEDS ?=
+ABLATION_SEEDS ?=
 JOBS        ?=
+OUT         ?=
+SEQUENCES   ?=
+PEERS       ?=
+MAX_FRAMES  ?=
+ONLY        ?=
+DRY_RUN     ?=
 STAMP       := $(VENV)/.installed
 
 export PYTHONHASHSEED := 0
@@ -33,7 +43,11 @@ test: $(STAMP)
 	$(PY) -m pytest
 
 figures: $(STAMP)
-	$(PY) -m experiments.run_all $(if $(DATA),--data "$(DATA)") $(if $(SEEDS),--seeds $(SEEDS)) $(if $(SWEEP_SEEDS),--sweep-seeds $(SWEEP_SEEDS)) $(if $(JOBS),--jobs $(JOBS))
+	$(PY) -m experiments.run_all $(if $(DATA),--data "$(DATA)") $(if $(OUT),--out "$(OUT)") \
+	    $(if $(SEQUENCES),--sequences "$(SEQUENCES)") $(if $(PEERS),--peers "$(PEERS)") \
+	    $(if $(SEEDS),--seeds $(SEEDS)) $(if $(SWEEP_SEEDS),--sweep-seeds $(SWEEP_SEEDS)) \
+	    $(if $(ABLATION_SEEDS),--ablation-seeds $(ABLATION_SEEDS)) $(if $(JOBS),--jobs $(JOBS)) \
+	    $(if $(MAX_FRAMES),--max-frames $(MAX_FRAMES)) $(if $(ONLY),--only "$(ONLY)") $(if $(DRY_RUN),--dry-run)
 
 theorem: $(STAMP)
 	$(PY) -m experiments.theorem1_checks

@@ -41,21 +41,19 @@ def period_label(period: int) -> str:
 
 
 def _specs(context, sequences, period: int) -> list:
-    specs = context.specs(sequences, context.base_params, context.sweep_seeds,
+    specs = context.specs(sequences, context.base_params, context.ablation_seeds,
                           label=f"re-centring: {period_label(period)}")
     return [dataclasses.replace(spec, recentre_every=period) for spec in specs]
 
 
 def runs(context) -> list:
     """Every period on every given sequence, sweep seeds (the free runs are Table II's)."""
-    paper_seqs, others = context.ordered_sequences()
-    return [spec for period in PERIODS for spec in _specs(context, paper_seqs + others, period)]
+    return [spec for period in PERIODS for spec in _specs(context, context.paper_sequences(), period)]
 
 
 def collect(context) -> dict:
-    paper_seqs, others = context.ordered_sequences()
     rows = []
-    for sequence in paper_seqs + others:
+    for sequence in context.paper_sequences():
         row = {"sequence": sequence.name, "paper_name": paper_name(sequence.name)}
         for period in PERIODS:
             specs = _specs(context, [sequence], period)
@@ -73,7 +71,7 @@ def collect(context) -> dict:
             averages[group] = {key: float(np.mean([r[key] for r in members])) for key in map(period_label, PERIODS)}
             papers = [r["paper"] for r in members if r["paper"] is not None]
             averages[group]["paper"] = float(np.mean(papers)) if papers and len(papers) == len(members) else None
-    return {"rows": rows, "averages": averages, "periods": list(PERIODS), "seeds": list(context.sweep_seeds)}
+    return {"rows": rows, "averages": averages, "periods": list(PERIODS), "seeds": list(context.ablation_seeds)}
 
 
 def plot(data: dict, path) -> None:

@@ -88,7 +88,7 @@ def runs(context) -> list:
     """The per-sequence runs and the default ones (the latter are Table II's, shared through the cache)."""
     return [spec for sequence, base, classic in configurations(context)
             for params, label in ((base, "per-sequence motion: default"), (classic, "per-sequence motion: classic"))
-            for spec in context.specs([sequence], params, context.seeds, label=label)]
+            for spec in context.specs([sequence], params, context.sweep_seeds, label=label)]
 
 
 def collect(context) -> dict:
@@ -98,7 +98,7 @@ def collect(context) -> dict:
                "motion_sigmas_default": list(base.motion_sigmas), "motion_sigmas_classic": list(classic.motion_sigmas),
                "affsig": list(CLASSIC_MOTION[sequence.name]["affsig"])}
         for key, params in (("default", base), ("classic", classic)):
-            specs = context.specs([sequence], params, context.seeds)
+            specs = context.specs([sequence], params, context.sweep_seeds)
             evaluations = context.evaluate(specs)
             overlaps = [e.mean_overlap for e in evaluations]
             row[f"overlap_{key}"], row[f"overlap_{key}_std"] = mean_std(overlaps)
@@ -108,7 +108,7 @@ def collect(context) -> dict:
         row["overlap_paper"] = paper.OVERLAP.get(name, {}).get("Ours")
         row["cle_paper"] = paper.CLE.get(name, {}).get("Ours")
         rows.append(row)
-    return {"rows": rows, "seeds": list(context.seeds)}
+    return {"rows": rows, "seeds": list(context.sweep_seeds)}
 
 
 def plot(data: dict, path) -> None:

@@ -43,11 +43,31 @@ METRICS = (("overlap", "mean overlap", 3), ("cle", "CLE (px)", 1), ("negative_sh
            ("negative_share_w", "negative share of w", 4), ("occluded", "frames occluded", 3), ("fps", "fps", 1))
 
 
+#: The tracker's switches beyond the paper (issue 11), one family each: (family, field).
+#: Each family runs every choice of its field; a field the tracker does not have is skipped.
+SWITCHES = (("template sampling", "template_sampling"), ("propagation", "propagation"),
+            ("translation noise", "translation_noise"), ("patch normalisation", "patch_normalization"))
+
+
+def _choices(field: str) -> tuple:
+    """The choices of a switch of :class:`TrackerParams` (its module's upper-case tuple that holds the default)."""
+    from nrmlc.tracker import params as module
+
+    default = getattr(module.TrackerParams(), field)
+    for name in dir(module):
+        value = getattr(module, name)
+        if name.isupper() and isinstance(value, tuple) and default in value and all(isinstance(v, str) for v in value):
+            return value
+    return (default,)
+
+
 def families(context) -> list[tuple[str, list[tuple[str, object]]]]:
     """(family, [(configuration label, TrackerParams)]); the first of each family is the default tracker."""
+    from nrmlc.tracker.params import TrackerParams
+
     base = context.base_params
-    r, s = base.positive_radius, base.negative_radius
-    return [
+    fields = set(base.as_dict())
+    out = [
         ("coding", [("regularized (paper)", base), ("constrained", base.replace(coding="constrained")),
                     ("plain (λ = β = 0)", plain_params(base))]),
         ("dictionaries", [(f"multiple k = {tuple(base.dictionary_sizes)} (paper)", base)]
@@ -55,15 +75,33 @@ def families(context) -> list[tuple[str, list[tuple[str, object]]]]:
         ("occlusion detection", [("on (paper)", base), ("off", base.replace(occlusion_detection=False))]),
         ("confidence", [("corrected (default)", base.replace(confidence="corrected")),
                         ("literal (as printed)", base.replace(confidence="literal"))]),
+    ]
+    for family, field in SWITCHES:
+        if field in fields:
+            current = getattr(base, field)
+            out.append((family, [(f"{current} (default)", base)]
+                        + [(choice, base.replace(**{field: choice})) for choice in _choices(field) if choice != current]))
+    if hasattr(TrackerParams, "paper"):
+        paper_preset = TrackerParams.paper()
+        if paper_preset != base:
+            out.append(("preset", [("default", base), ("paper (as printed)", paper_preset)]))
+    out += [
         ("scale noise", [(f"{100 * base.motion_sigmas[2]:g}% (default)", base)]
          + [(f"{100 * sigma:g}%", base.replace(motion_sigmas=_with_scale_sigma(base.motion_sigmas, sigma)))
             for sigma in SCALE_SIGMAS if sigma != base.motion_sigmas[2]]),
         ("particles", [(f"{base.n_particles} (default)", base)]
          + [(f"{n}", base.replace(n_particles=n)) for n in (base.n_particles // 2, 2 * base.n_particles)]),
-        ("template radii", [(f"r = {r:g}, s = {s:g} (default)", base)]
-         + [(f"r = {r2:g}, s = {s2:g}", base.replace(positive_radius=r2, negative_radius=s2))
-            for r2, s2 in ((r / 2, s), (2 * r, s), (r, s / 2), (r, 2 * s))]),
     ]
+    if getattr(base, "template_sampling", "annulus") == "annulus":
+        r, s = base.positive_radius, base.negative_radius
+        out.append(("template radii", [(f"r = {r:g}, s = {s:g} (default)", base)]
+                    + [(f"r = {r2:g}, s = {s2:g}", base.replace(positive_radius=r2, negative_radius=s2))
+                       for r2, s2 in ((r / 2, s), (2 * r, s), (r, s / 2), (r, 2 * s))]))
+    elif "positive_sigma" in fields:
+        sigma = base.positive_sigma
+        out.append(("positive template spread", [(f"σ = {sigma:g} px (default)", base)]
+                    + [(f"σ = {v:g} px", base.replace(positive_sigma=v)) for v in (sigma / 2, 2 * sigma)]))
+    return out
 
 
 def _with_scale_sigma(sigmas: tuple, scale_sigma: float) -> tuple:
@@ -71,10 +109,10 @@ def _with_scale_sigma(sigmas: tuple, scale_sigma: float) -> tuple:
 
 
 def runs(context) -> list:
-    """Every configuration of every family on the paper's given sequences, every sweep seed."""
+    """Every configuration of every family on the paper's given sequences, every ablation seed."""
     sequences = context.paper_sequences()
     return [spec for family, configs in families(context) for label, params in configs
-            for spec in context.specs(sequences, params, context.sweep_seeds, label=f"ablation {family}: {label}")]
+            for spec in context.specs(sequences, params, context.ablation_seeds, label=f"ablation {family}: {label}")]
 
 
 def _run_numbers(result, spec) -> dict:
@@ -92,7 +130,7 @@ def _run_numbers(result, spec) -> dict:
 
 def collect(context) -> dict:
     sequences = context.paper_sequences()
-    seeds = list(context.sweep_seeds)
+    seeds = list(context.ablation_seeds)
     out = []
     for family, configs in families(context):
         rows = []

@@ -22,18 +22,16 @@ budget=None)``; a budget can also ride on the context as
 """
 from __future__ import annotations
 
-import concurrent.futures as futures
 import hashlib
 import json
-import os
 import time
 from dataclasses import asdict, dataclass, replace
-from pathlib import Path
+from typing import ClassVar
 
 import numpy as np
 
 from nrmlc import io
-from nrmlc.runner import code_version, sequence_identity
+from nrmlc.runner import frames_tracked, sequence_identity
 from nrmlc.tracker.params import TrackerParams
 
 #: Bump when the recorded content changes (invalidates the collection cache).
@@ -118,11 +116,6 @@ def limit(sequences: list, budget: Budget) -> list:
     return list(sequences) if budget.max_sequences is None else list(sequences)[: budget.max_sequences]
 
 
-def cache_folder(context) -> Path:
-    """``<run cache>/../analysis``: beside the run cache, so tests' tmp caches stay apart."""
-    return Path(context.cache.folder).parent / "analysis"
-
-
 def get_context(context):
     if context is None:
         from experiments.common import context_from_args
@@ -143,16 +136,6 @@ def sampled_frames(n_frames: int, every: int, update_interval: int) -> list[int]
         if index < n_frames and (not chosen or index > chosen[-1]):
             chosen.append(index)
     return chosen
-
-
-def _collection_key(sequence, params: TrackerParams, seed: int, budget: Budget) -> str:
-    description = {
-        "sequence": sequence_identity(sequence), "params": params.as_dict(), "seed": int(seed),
-        "max_frames": budget.max_frames, "every": budget.every, "n_candidates": budget.n_candidates,
-        "collector": COLLECTOR_VERSION, "n_nearest": N_NEAREST, "code_version": code_version(),
-    }
-    text = json.dumps(description, sort_keys=True, default=str)
-    return hashlib.sha256(text.encode()).hexdigest()[:24]
 
 
 def _record(tracker, frame_index: int, rng: np.random.Generator, n_record: int) -> dict | None:
@@ -217,89 +200,83 @@ def _stack_records(records: list[dict]) -> dict:
     return out
 
 
-def _collect_uncached(sequence, params: TrackerParams, seed: int, budget: Budget, path: str,
-                      threads: int | None = None) -> str:
-    """Track, record at sampled frames, write ``path`` atomically; returns ``path``."""
-    if threads is not None:
-        from nrmlc.config import set_threads
+@dataclass(frozen=True)
+class Collection:
+    """Track a sequence and record the coding step's internals at sampled frames.
 
-        set_threads(threads)
-    from nrmlc.tracker.nrmlc_tracker import NRMLCTracker
+    A job of :class:`nrmlc.runner.RunCache` (stored under ``<cache>/analysis/``),
+    keyed by the sequence, the parameters, the seed, the sampling budget, the
+    collector version and the code version.
+    """
 
-    n_frames = len(sequence) if budget.max_frames is None else min(int(budget.max_frames), len(sequence))
-    wanted = set(sampled_frames(n_frames, budget.every, params.update_interval))
-    tracker = NRMLCTracker(seed=seed, params=params)
-    rng = np.random.default_rng([int(seed), 7919])
-    start = time.perf_counter()
-    tracker.init(sequence.frame(0), sequence.init_box)
-    records = []
-    boxes = [np.asarray(tracker.initial_box, dtype=np.float64)]
-    for index in range(1, n_frames):
-        boxes.append(np.asarray(tracker.update(sequence.frame(index)), dtype=np.float64))
-        if index in wanted:
-            record = _record(tracker, index, rng, budget.n_candidates)
-            if record is not None:
-                records.append(record)
-    if not records:
-        raise RuntimeError(f"{sequence.name}: no frame recorded (n_frames={n_frames}, every={budget.every})")
-    arrays = _stack_records(records)
-    arrays["boxes"] = np.array(boxes)
-    arrays["seconds"] = np.float64(time.perf_counter() - start)
-    arrays["n_tracked"] = np.int64(n_frames)
-    arrays["code_version"] = np.array(code_version())
-    io.write_npz(path, **arrays)
-    return path
+    sequence: object
+    params: TrackerParams
+    seed: int
+    budget: Budget
+
+    folder: ClassVar[str] = "analysis"
+    uses_kernels: ClassVar[bool] = True
+
+    @property
+    def label(self) -> str:
+        return f"internals of {self.sequence.name}"
+
+    def frames(self) -> int:
+        return frames_tracked(self.sequence, self.budget.max_frames)
+
+    def description(self, version: str) -> dict:
+        return {"sequence": sequence_identity(self.sequence), "params": self.params.as_dict(),
+                "seed": int(self.seed), "max_frames": self.budget.max_frames, "every": self.budget.every,
+                "n_candidates": self.budget.n_candidates, "collector": COLLECTOR_VERSION, "n_nearest": N_NEAREST,
+                "code_version": version}
+
+    def key(self, version: str) -> str:
+        text = json.dumps(self.description(version), sort_keys=True, default=str)
+        return hashlib.sha256(text.encode()).hexdigest()[:24]
+
+    def execute(self) -> dict:
+        from nrmlc.tracker.nrmlc_tracker import NRMLCTracker
+
+        sequence, params, seed, budget = self.sequence, self.params, self.seed, self.budget
+        n_frames = self.frames()
+        wanted = set(sampled_frames(n_frames, budget.every, params.update_interval))
+        tracker = NRMLCTracker(seed=seed, params=params)
+        rng = np.random.default_rng([int(seed), 7919])
+        start = time.perf_counter()
+        tracker.init(sequence.frame(0), sequence.init_box)
+        records = []
+        boxes = [np.asarray(tracker.initial_box, dtype=np.float64)]
+        for index in range(1, n_frames):
+            boxes.append(np.asarray(tracker.update(sequence.frame(index)), dtype=np.float64))
+            if index in wanted:
+                record = _record(tracker, index, rng, budget.n_candidates)
+                if record is not None:
+                    records.append(record)
+        if not records:
+            raise RuntimeError(f"{sequence.name}: no frame recorded (n_frames={n_frames}, every={budget.every})")
+        arrays = _stack_records(records)
+        arrays["boxes"] = np.array(boxes)
+        arrays["seconds"] = np.float64(time.perf_counter() - start)
+        arrays["n_tracked"] = np.int64(n_frames)
+        return arrays
+
+    def result(self, arrays: dict) -> dict:
+        return dict(arrays, name=self.sequence.name)
+
+
+def collections_for(context, sequences: list, budget: Budget, seed: int = 0,
+                    params: TrackerParams | None = None) -> list[Collection]:
+    """The collection jobs of :func:`collect_many` (for ``runs(context)``)."""
+    params = params if params is not None else tracker_params(budget, context)
+    return [Collection(s, params, int(seed), budget) for s in sequences]
 
 
 def collect_many(context, sequences: list, budget: Budget, seed: int = 0,
                  params: TrackerParams | None = None) -> list[dict]:
-    """Recorded internals of each sequence (cached; missing ones computed, in parallel
-    over sequences when the context allows more than one job)."""
-    params = params if params is not None else tracker_params(budget, context)
-    folder = cache_folder(context)
-    folder.mkdir(parents=True, exist_ok=True)
-    paths = [folder / f"collect-{_collection_key(s, params, seed, budget)}.npz" for s in sequences]
-    missing = [(s, p) for s, p in zip(sequences, paths) if not p.is_file()]
-    jobs = context.jobs or os.cpu_count() or 1
-    if missing and (context.executor is not None or (jobs > 1 and len(missing) > 1)):
-        own = context.executor is None
-        executor = context.executor or futures.ProcessPoolExecutor(max_workers=min(jobs, len(missing)))
-        try:
-            pending = [executor.submit(_collect_uncached, s, params, seed, budget, str(p), 1) for s, p in missing]
-            for done in pending:
-                done.result()
-        finally:
-            if own:
-                executor.shutdown(wait=True, cancel_futures=True)
-    else:
-        for s, p in missing:
-            _collect_uncached(s, params, seed, budget, str(p))
-    if missing:
-        prune_stale(folder)
-    results = []
-    for s, p in zip(sequences, paths):
-        with np.load(p) as arrays:
-            data = {k: arrays[k] for k in arrays.files}
-        data["name"] = s.name
-        results.append(data)
-    return results
-
-
-def prune_stale(folder: Path) -> int:
-    """Delete collections recorded under another tracker code version (they can never
-    be hit again: the key includes the version). Returns how many were removed."""
-    current = code_version()
-    removed = 0
-    for path in Path(folder).glob("collect-*.npz"):
-        try:
-            with np.load(path) as arrays:
-                version = str(arrays["code_version"]) if "code_version" in arrays.files else None
-            if version != current:
-                path.unlink()
-                removed += 1
-        except (OSError, ValueError, KeyError):  # unreadable or vanished: leave it
-            continue
-    return removed
+    """Recorded internals of each sequence (cached in the run cache; missing ones computed
+    in the context's pool)."""
+    jobs = collections_for(context, sequences, budget, seed, params)
+    return context.cache.run(jobs, executor=context.executor, jobs=context.jobs)
 
 
 def pooled(collections: list[dict], name: str) -> np.ndarray:

@@ -16,25 +16,16 @@ import matplotlib
 
 matplotlib.use("Agg")  # never a window: figures go to files
 
+from experiments.sequence_sets import DEVELOPMENT_SEQUENCES, PAPER_SEQUENCES, paper_name  # noqa: E402
 from nrmlc.config import data_root_from_env  # noqa: E402
-from nrmlc.runner import DEFAULT_CACHE, RunCache, RunSpec  # noqa: E402
+from nrmlc.runner import DEFAULT_CACHE, RunCache, RunSpec, frames_tracked  # noqa: E402
 from nrmlc.tracker.params import TrackerParams  # noqa: E402
 
 REPO_ROOT = Path(__file__).resolve().parent.parent
 
-#: The paper's 12 sequences (Tables I and II) and the names they have in the data we
-#: can get: Occlusion1/Occlusion2 are the sparse-tracker versions of FaceOcc1/FaceOcc2.
-PAPER_SEQUENCES = ("Car4", "CarScale", "David3", "Deer", "FaceOcc2", "Caviar3", "ClifBar",
-                   "Human7", "FaceOcc1", "Skating1", "Caviar1", "Singer1")
-PAPER_NAME_OF = {"Occlusion1": "FaceOcc1", "Occlusion2": "FaceOcc2", "Carscale": "CarScale",
-                 "Cliffbar": "ClifBar"}
-
-
-def paper_name(sequence_name: str) -> str | None:
-    """The paper's name for a sequence of ours, or None if it is not one of its 12."""
-    name = PAPER_NAME_OF.get(sequence_name, sequence_name)
-    lowered = {s.lower(): s for s in PAPER_SEQUENCES}
-    return lowered.get(name.lower())
+#: Where results go unless ``--out`` says otherwise: git-ignored, so that no run
+#: overwrites the committed real-data results in ``figures/`` by accident.
+DEFAULT_OUT = REPO_ROOT / "out" / "figures"
 
 
 @dataclass
@@ -46,11 +37,13 @@ class Context:
     data_root : Path or None
         Folder of real sequences; None means the synthetic suite.
     figures_dir : Path
-        Where PNG/CSV/JSON outputs go.
+        Where PNG/CSV/JSON outputs go (default ``out/figures``, git-ignored).
     seeds : tuple of int
         Seeds for the main tables (mean of these).
     sweep_seeds : tuple of int
-        Seeds for sweeps and ablations (fewer, to keep the whole set under an hour).
+        Seeds of the lambda sweep (Fig. 4) and the re-centring runs.
+    ablation_seeds : tuple of int
+        Seeds of the ablations (fewer: many configurations, all nine sequences).
     jobs : int or None
         Worker processes (default: all cores).
     executor : concurrent.futures.Executor or None
@@ -65,12 +58,15 @@ class Context:
         Sequences of the synthetic suite (when no data root is given).
     peer_root : Path or None
         Folder of the shipped peer results (default: ``<data_root>/../peer_results``).
+    only_sequences : tuple of str or None
+        Use only the given sequences with these names (``--sequences``).
     """
 
     data_root: Path | None = None
-    figures_dir: Path = REPO_ROOT / "figures"
+    figures_dir: Path = DEFAULT_OUT
     seeds: tuple = (0, 1, 2, 3, 4)
-    sweep_seeds: tuple = (0, 1, 2)
+    sweep_seeds: tuple = (0, 1)
+    ablation_seeds: tuple = (0,)
     jobs: int | None = None
     executor: object = None
     cache: RunCache = field(default_factory=lambda: RunCache(REPO_ROOT / DEFAULT_CACHE))
@@ -78,6 +74,7 @@ class Context:
     base_params: TrackerParams = field(default_factory=TrackerParams)
     n_synthetic: int = 3
     peer_root: Path | None = None
+    only_sequences: tuple | None = None
     _sequences: list | None = None
 
     @property
@@ -89,23 +86,42 @@ class Context:
         return "synthetic suite" if self.is_synthetic else str(self.data_root)
 
     def sequences(self) -> list:
-        """Every sequence given (all targets of multi-target folders), sorted by name."""
+        """Every sequence given (all targets of multi-target folders), sorted by name,
+        or only those named by :attr:`only_sequences`."""
         if self._sequences is None:
             if self.is_synthetic:
                 from nrmlc.data import synthetic_suite
 
-                self._sequences = synthetic_suite(n_sequences=self.n_synthetic)
+                sequences = synthetic_suite(n_sequences=self.n_synthetic)
             else:
                 from nrmlc.data import list_sequences
 
-                self._sequences = list_sequences(self.data_root)
+                sequences = list_sequences(self.data_root)
+            if self.only_sequences is not None:
+                from nrmlc.errors import DataError
+
+                by_name = {s.name.lower(): s for s in sequences}
+                unknown = [n for n in self.only_sequences if n.lower() not in by_name]
+                if unknown:
+                    raise DataError(f"--sequences: {', '.join(unknown)} not in {self.data_label} "
+                                    f"(given: {', '.join(s.name for s in sequences)})")
+                wanted = {n.lower() for n in self.only_sequences}
+                sequences = [s for s in sequences if s.name.lower() in wanted]
+            self._sequences = sequences
         return self._sequences
 
     def paper_sequences(self) -> list:
-        """The given sequences that are among the paper's 12 (all of them when synthetic)."""
+        """The given sequences among the paper's, in its table order (all of them when synthetic)."""
         if self.is_synthetic:
             return self.sequences()
-        return [s for s in self.sequences() if paper_name(s.name) is not None]
+        return self.ordered_sequences()[0]
+
+    def development_sequences(self) -> list:
+        """The given development sequences (:data:`~experiments.sequence_sets.DEVELOPMENT_SEQUENCES`)."""
+        if self.is_synthetic:
+            return []
+        by_name = {s.name: s for s in self.sequences()}
+        return [by_name[n] for n in DEVELOPMENT_SEQUENCES if n in by_name]
 
     def ordered_sequences(self) -> tuple[list, list]:
         """(the paper's sequences in its table order, the other given sequences by name).
@@ -114,15 +130,13 @@ class Context:
         here: no paper number belongs to them.
         """
         order = {name: i for i, name in enumerate(PAPER_SEQUENCES)}
-        paper = [s for s in self.sequences() if paper_name(s.name) is not None]
-        paper.sort(key=lambda s: order[paper_name(s.name)])
-        others = [s for s in self.sequences() if paper_name(s.name) is None]
+        paper = sorted((s for s in self.sequences() if s.name in order), key=lambda s: order[s.name])
+        others = [s for s in self.sequences() if s.name not in order]
         return paper, others
 
     def n_frames(self, sequence) -> int:
         """Frames tracked in ``sequence`` under :attr:`max_frames`."""
-        n = len(sequence)
-        return n if self.max_frames is None else max(1, min(n, int(self.max_frames)))
+        return frames_tracked(sequence, self.max_frames)
 
     def specs(self, sequences, params: TrackerParams | None = None, seeds=None, label: str = "") -> list[RunSpec]:
         """One RunSpec per (sequence, seed), honouring :attr:`max_frames`.
@@ -152,7 +166,8 @@ class Context:
     def describe_grid(self) -> str:
         """One line naming the seeds and the frame cap (for the report's sections)."""
         cap = "" if self.max_frames is None else f", first {self.max_frames} frames only"
-        return f"seeds {list(self.seeds)}, sweep seeds {list(self.sweep_seeds)}{cap}"
+        return (f"seeds {list(self.seeds)}, sweep seeds {list(self.sweep_seeds)}, "
+                f"ablation seeds {list(self.ablation_seeds)}{cap}")
 
     def sequence(self, *names: str):
         """The first given sequence whose name matches one of ``names`` (case-insensitive), else None."""
@@ -179,12 +194,6 @@ def specs_for(sequences, params: TrackerParams, seeds, label: str = "", n_frames
     """One RunSpec per (sequence, seed)."""
     return [RunSpec(sequence=s, params=params, seed=int(seed), n_frames=n_frames, label=label)
             for s in sequences for seed in seeds]
-
-
-def spec_frames(spec: RunSpec) -> int:
-    """Frames a run tracks."""
-    n = len(spec.sequence)
-    return n if spec.n_frames is None else max(1, min(n, int(spec.n_frames)))
 
 
 def score(boxes, sequence, n_frames: int | None = None):
@@ -286,19 +295,30 @@ def params_differences(params: TrackerParams, reference: TrackerParams | None = 
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--data", default=None, help="data root of real sequences (default: $NRMLC_DATA, else synthetic)")
-    parser.add_argument("--seeds", type=int, default=None, help="number of seeds for the main tables (default 5)")
-    parser.add_argument("--sweep-seeds", type=int, default=None, help="number of seeds for sweeps/ablations (default 3)")
-    parser.add_argument("--jobs", type=int, default=None, help="worker processes (default: all cores)")
-    parser.add_argument("--figures", default=None, help="output folder (default: figures/)")
-    parser.add_argument("--max-frames", type=int, default=None,
-                        help="development: track only the first N frames of every sequence")
+    """The options every experiment takes (``make figures`` passes them through)."""
+    parser.add_argument("--data", default=None, metavar="DIR",
+                        help="data root of real sequences (default: $NRMLC_DATA, else the synthetic suite)")
+    parser.add_argument("--out", "--figures", dest="out", default=None, metavar="DIR",
+                        help="output folder (default: out/figures, git-ignored; the committed real-data "
+                             "results are written with --out figures)")
+    parser.add_argument("--sequences", default=None, metavar="NAME[,NAME]",
+                        help="use only these sequences (e.g. Car4,Caviar1)")
+    parser.add_argument("--seeds", type=int, default=None, metavar="N",
+                        help="seeds of Tables I/II and Fig. 3 (default 5)")
+    parser.add_argument("--sweep-seeds", type=int, default=None, metavar="N",
+                        help="seeds of the lambda sweep and the re-centring runs (default 2)")
+    parser.add_argument("--ablation-seeds", type=int, default=None, metavar="N",
+                        help="seeds of the ablations (default 1)")
+    parser.add_argument("--jobs", type=int, default=None, metavar="J", help="worker processes (default: all cores)")
+    parser.add_argument("--max-frames", type=int, default=None, metavar="N",
+                        help="development: track only the first N frames of every sequence (tables then say "
+                             "so beside every full-sequence paper number)")
     parser.add_argument("--param", action="append", default=[], metavar="NAME=VALUE",
                         help="development: change a tracker parameter of every run (repeatable)")
-    parser.add_argument("--synthetic-sequences", type=int, default=None,
+    parser.add_argument("--synthetic-sequences", type=int, default=None, metavar="N",
                         help="sequences in the synthetic suite (default 3; only without --data)")
-    parser.add_argument("--cache", default=None, help="run cache folder (default: .cache/runs)")
-    parser.add_argument("--peers", default=None,
+    parser.add_argument("--cache", default=None, metavar="DIR", help="run cache folder (default: .cache/runs)")
+    parser.add_argument("--peers", default=None, metavar="DIR",
                         help="folder of shipped peer results (default: <data>/../peer_results)")
 
 
@@ -322,10 +342,14 @@ def context_from_namespace(args) -> Context:
         context.seeds = tuple(range(args.seeds))
     if args.sweep_seeds:
         context.sweep_seeds = tuple(range(args.sweep_seeds))
+    if getattr(args, "ablation_seeds", None):
+        context.ablation_seeds = tuple(range(args.ablation_seeds))
     if args.jobs:
         context.jobs = args.jobs
-    if args.figures:
-        context.figures_dir = Path(args.figures).resolve()
+    if getattr(args, "out", None):
+        context.figures_dir = Path(args.out).resolve()
+    if getattr(args, "sequences", None):
+        context.only_sequences = tuple(n.strip() for n in args.sequences.split(",") if n.strip())
     if getattr(args, "max_frames", None):
         context.max_frames = int(args.max_frames)
     if getattr(args, "param", None):

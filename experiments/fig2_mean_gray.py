@@ -17,7 +17,7 @@ import numpy as np
 
 from experiments.common import save_figure
 from experiments.analysis_common import (
-    Budget, budget_for, collect_many, describe_params, get_context, limit, tracker_params,
+    Budget, budget_for, collect_many, collections_for, describe_params, get_context, limit, tracker_params,
 )
 from experiments.stats_nonnegativity import REAL_BUDGET, SYNTHETIC_BUDGET
 from nrmlc import io
@@ -32,6 +32,12 @@ def _summary(values: np.ndarray) -> dict:
     return {"n": int(values.size), "mean": float(values.mean()), "min": float(values.min()),
             "p1": float(np.percentile(values, 1)), "p50": float(np.median(values)),
             "p99": float(np.percentile(values, 99)), "max": float(values.max())}
+
+
+def runs(context, budget: Budget | None = None) -> list:
+    """The recorded internals this script reads (those of the statistics script)."""
+    budget = budget_for(context, budget, SYNTHETIC_BUDGET, REAL_BUDGET)
+    return collections_for(context, limit(context.sequences(), budget), budget)
 
 
 def main(context=None, budget: Budget | None = None) -> dict:

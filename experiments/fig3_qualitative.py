@@ -34,7 +34,7 @@ COLOURS = {"Ground truth": "#00ff00", "NRMLC (ours)": "#ff2020", "MIL (OpenCV)":
 
 def _sequences(context) -> list:
     paper_seqs, others = context.ordered_sequences()
-    return paper_seqs + others
+    return paper_seqs or others  # the paper's sequences; the synthetic suite without data
 
 
 def runs(context) -> list:

@@ -24,19 +24,18 @@ Two sources of peer numbers, both scored with :mod:`nrmlc.metrics` against
 """
 from __future__ import annotations
 
-import concurrent.futures as futures
 import hashlib
 import json
-import os
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import ClassVar
 
 import numpy as np
 
-from experiments.common import PAPER_NAME_OF, paper_name
+from experiments.sequence_sets import PAPER_NAME_OF, paper_name
 from nrmlc import io
-from nrmlc.runner import sequence_identity
+from nrmlc.runner import RunCache, frames_tracked, sequence_identity
 
 #: Bump when the live runner's behaviour changes (it is part of every key).
 LIVE_RUNNER_VERSION = 1
@@ -80,24 +79,41 @@ def live_label(name: str) -> str:
 
 @dataclass(frozen=True)
 class LiveSpec:
-    """One live OpenCV run: ``tracker`` on the first ``n_frames`` frames of ``sequence``."""
+    """One live OpenCV run: ``tracker`` on the first ``n_frames`` frames of ``sequence``.
+
+    A job of :class:`nrmlc.runner.RunCache`, stored under ``<cache>/peers/``; its key
+    does not depend on our code version (OpenCV's version is in it instead).
+    """
 
     sequence: object
     tracker: str = "MIL"
     n_frames: int | None = None
 
-    def frames(self) -> int:
-        n = len(self.sequence)
-        return n if self.n_frames is None else max(1, min(n, int(self.n_frames)))
+    folder: ClassVar[str] = "peers"
+    uses_kernels: ClassVar[bool] = False
 
-    def description(self) -> dict:
+    @property
+    def label(self) -> str:
+        return f"{self.tracker} (OpenCV) {self.sequence.name}"
+
+    def frames(self) -> int:
+        return frames_tracked(self.sequence, self.n_frames)
+
+    def description(self, version: str | None = None) -> dict:
         return {"tracker": self.tracker, "opencv": opencv_version(), "runner": LIVE_RUNNER_VERSION,
                 "sequence": sequence_identity(self.sequence), "sequence_name": self.sequence.name,
                 "n_frames": self.n_frames}
 
-    def key(self) -> str:
+    def key(self, version: str | None = None) -> str:
         text = json.dumps(self.description(), sort_keys=True, default=str)
         return hashlib.sha256(text.encode()).hexdigest()[:24]
+
+    def execute(self) -> dict:
+        return run_live(self)
+
+    def result(self, arrays: dict) -> "PeerResult":
+        return PeerResult(np.asarray(arrays["boxes"]), float(arrays["seconds_tracking"]),
+                          f"live, OpenCV {opencv_version()}")
 
 
 @dataclass
@@ -162,81 +178,14 @@ def run_live(spec: LiveSpec) -> dict:
     return {"boxes": boxes, "seconds_tracking": np.float64(seconds)}
 
 
-def _worker_init() -> None:
-    from nrmlc.config import set_threads
-
-    set_threads(1)
-
-
-class PeerCache:
-    """Live peer results on disk: ``<folder>/<key>.npz`` plus a ``.json`` description."""
-
-    def __init__(self, folder) -> None:
-        self.folder = Path(folder)
-
-    def path(self, spec: LiveSpec) -> Path:
-        return self.folder / f"{spec.key()}.npz"
-
-    def has(self, spec: LiveSpec) -> bool:
-        return self.path(spec).is_file()
-
-    def load(self, spec: LiveSpec) -> PeerResult:
-        with np.load(self.path(spec)) as arrays:
-            return PeerResult(np.asarray(arrays["boxes"]), float(arrays["seconds_tracking"]),
-                              f"live, OpenCV {opencv_version()}")
-
-    def store(self, spec: LiveSpec, arrays: dict) -> None:
-        # Result first, description second: a present .npz is always complete.
-        io.write_npz(self.path(spec), **arrays)
-        io.write_json(self.path(spec).with_suffix(".json"), spec.description())
-
-    def run(self, specs: list[LiveSpec], executor=None, jobs: int | None = None, progress: bool = True):
-        """Make sure every spec is cached (computing the missing ones), then load them in order."""
-        unique = {}
-        for spec in specs:
-            unique.setdefault(spec.key(), spec)
-        missing = [s for s in unique.values() if not self.has(s)]
-        if missing:
-            self._compute(missing, executor, jobs, progress)
-        return [self.load(s) for s in specs]
-
-    def _compute(self, missing, executor, jobs, progress) -> None:
-        from tqdm import tqdm
-
-        bar = tqdm(total=sum(s.frames() for s in missing), unit="frame", desc=f"{len(missing)} OpenCV runs",
-                   disable=not progress or None)
-
-        def finished(spec, arrays):
-            self.store(spec, arrays)
-            bar.update(spec.frames())
-            bar.set_postfix_str(f"{spec.tracker} {spec.sequence.name}", refresh=False)
-
-        jobs = jobs or os.cpu_count() or 1
-        try:
-            if executor is None and jobs == 1:
-                _worker_init()
-                for spec in missing:
-                    finished(spec, run_live(spec))
-                return
-            own = executor is None
-            if own:
-                executor = futures.ProcessPoolExecutor(max_workers=min(jobs, len(missing)), initializer=_worker_init)
-            try:
-                # Longest first, so the last worker is not left alone with a long sequence.
-                ordered = sorted(missing, key=lambda s: -s.frames())
-                pending = {executor.submit(run_live, spec): spec for spec in ordered}
-                for done in futures.as_completed(pending):
-                    finished(pending[done], done.result())
-            finally:
-                if own:
-                    executor.shutdown(wait=True, cancel_futures=True)
-        finally:
-            bar.close()
+def PeerCache(folder) -> RunCache:
+    """Deprecated: live runs are jobs of the one run cache; ``folder`` is ``<run cache>/peers``."""
+    return RunCache(Path(folder).parent)
 
 
-def cache_for(context) -> PeerCache:
-    """The peer cache that lives beside the context's run cache."""
-    return PeerCache(Path(context.cache.folder) / "peers")
+def cache_for(context) -> RunCache:
+    """The run cache (live runs are stored in its ``peers/`` folder)."""
+    return context.cache
 
 
 def live_specs(context, sequences=None) -> list[LiveSpec]:

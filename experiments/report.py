@@ -16,6 +16,18 @@ from nrmlc.runner import code_version
 REPORT_NAME = "REPORT.md"
 
 
+def package_versions() -> dict:
+    """Versions of Python and of the packages that can change a number in the report."""
+    import cv2
+    import matplotlib
+    import numba
+    import numpy
+    import scipy
+
+    return {"Python": platform.python_version(), "numpy": numpy.__version__, "numba": numba.__version__,
+            "OpenCV": cv2.__version__, "SciPy": scipy.__version__, "matplotlib": matplotlib.__version__}
+
+
 def header(context, seconds: float | None = None, grid: dict | None = None) -> str:
     """The report's opening: data, sequences, seeds, parameters, code version, date."""
     sequences = context.sequences()
@@ -30,12 +42,13 @@ def header(context, seconds: float | None = None, grid: dict | None = None) -> s
         f"- Data: {context.data_label}",
         f"- Sequences ({len(sequences)}, [frames tracked]): {listed}",
         f"- Of the paper's 12 sequences given: {', '.join(paper_given) if paper_given else 'none'}",
-        f"- Seeds: main tables {list(context.seeds)}; λ sweep and ablations {list(context.sweep_seeds)}",
+        f"- Seeds: Tables I/II and Fig. 3 {list(context.seeds)}; λ sweep and per-sequence motion "
+        f"{list(context.sweep_seeds)}; ablations and re-centring {list(context.ablation_seeds)}",
         f"- Frame cap: {context.max_frames if context.max_frames else 'none (every frame)'}",
         f"- Tracker parameters: {'the paper defaults' if not changed else 'paper defaults except ' + str(changed)}",
-        f"- Code version (hash of the sources that decide the boxes): `{code_version()}`",
-        f"- Date: {datetime.datetime.now().astimezone().isoformat(timespec='seconds')}; "
-        f"Python {platform.python_version()} on {platform.machine()}",
+        f"- Code version (hash of the sources that decide the boxes): `{code_version()}`; packages: "
+        + ", ".join(f"{name} {version}" for name, version in package_versions().items()),
+        f"- Date: {datetime.datetime.now().astimezone().isoformat(timespec='seconds')}; {platform.machine()}",
     ]
     if grid:
         lines.append(f"- Grid: {grid.get('runs', 0)} NRMLC runs, {grid.get('frames', 0)} frames "

@@ -1,57 +1,58 @@
-"""``make figures``: every figure and table of the paper, and ``figures/REPORT.md``.
+"""``make figures``: every figure and table of the paper, and ``REPORT.md``.
 
 Usage::
 
-    python -m experiments.run_all [--data DIR] [--seeds N] [--sweep-seeds N] [--jobs J]
-                                  [--dask SCHEDULER_ADDRESS] [--only a,b] [--max-frames N]
+    python -m experiments.run_all [--data DIR] [--out DIR] [--sequences A,B] [--seeds N]
+                                  [--sweep-seeds N] [--ablation-seeds N] [--jobs J] [--max-frames N]
+                                  [--only SCRIPT,SCRIPT] [--dry-run] [--dask SCHEDULER_ADDRESS]
+
+Results go to ``out/figures/`` (git-ignored) unless ``--out`` names another
+folder; the committed real-data results are written with ``--out figures``.
 
 Steps:
 
 1. build the :class:`~experiments.common.Context` (data, seeds, run cache);
-2. collect the RunSpecs of every script (``runs(context)``) and its live
-   OpenCV peer runs (``peer_runs(context)``), print the size of the grid,
-   and run the union in one pool of warmed-up workers (cached runs are
-   skipped, so a rerun or an interrupted run costs only what is missing);
+2. collect the jobs of every script (``runs(context)``: tracking runs and
+   recorded internals; ``peer_runs(context)``: live OpenCV runs), print the
+   size of the grid per script (``--dry-run`` stops here), and compute the
+   missing ones in one pool of warmed-up workers (cached runs are skipped, so
+   a rerun or an interrupted run costs only what is missing);
 3. call each script's ``main(context)`` in the paper's order (they read the
-   cached results); a script that is not there is skipped with a note, one
-   that fails is reported (traceback on stderr, a note in the report) and
-   the others still run;
-4. write ``figures/REPORT.md``; exit non-zero if any script failed.
+   cached results); one that fails is reported (traceback on stderr, a note
+   in the report) and the others still run;
+4. write ``REPORT.md``; exit non-zero if any script failed.
 """
 from __future__ import annotations
 
 import argparse
-import concurrent.futures
 import importlib
 import os
 import sys
 import time
 import traceback
 
-from experiments import peers, report
-from experiments.common import add_arguments, context_from_namespace, spec_frames
+from experiments import report
+from experiments.common import add_arguments, context_from_namespace
 from nrmlc.errors import NrmlcError
 
-#: Every script, in the paper's order: (module, whether it is ours to require).
-#: The analysis scripts (theorem, Fig. 1/2, statistics, occlusion) are written
-#: separately; when one is missing the report says so and the rest go on.
+#: Every script, in the paper's order.
 SCRIPTS = (
-    ("experiments.theorem1_checks", False),
-    ("experiments.fig1_coefficients", False),
-    ("experiments.fig2_mean_gray", False),
-    ("experiments.stats_nonnegativity", False),
-    ("experiments.table1_table2_accuracy", True),
-    ("experiments.fig3_qualitative", True),
-    ("experiments.fig4_lambda_sweep", True),
-    ("experiments.fig_occlusion", False),
-    ("experiments.ablations", True),
-    ("experiments.ablation_per_sequence_motion", True),
-    ("experiments.ablation_oracle_recentring", True),
-    ("experiments.ablation_synthetic_dev", True),
+    "experiments.theorem1_checks",
+    "experiments.fig1_coefficients",
+    "experiments.fig2_mean_gray",
+    "experiments.stats_nonnegativity",
+    "experiments.table1_table2_accuracy",
+    "experiments.fig3_qualitative",
+    "experiments.fig4_lambda_sweep",
+    "experiments.fig_occlusion",
+    "experiments.ablations",
+    "experiments.ablation_per_sequence_motion",
+    "experiments.ablation_oracle_recentring",
 )
 
-#: Rough tracking speed for the time estimate (frames per second per worker).
-ESTIMATE_FPS_PER_WORKER = 80.0  # measured: ~85 fps per single-threaded worker (figures/bench.md)
+#: Aggregate tracking speed of the default pool for the time estimate: measured on this
+#: 2-core machine, ~115 frames/s with 2 single-threaded workers at 600 particles.
+ESTIMATE_FPS_PER_WORKER = 57.0
 #: Rough speed of OpenCV's MIL (frames per second per worker).
 ESTIMATE_PEER_FPS = 15.0
 
@@ -60,115 +61,84 @@ def _short(module: str) -> str:
     return module.rsplit(".", 1)[-1]
 
 
-def import_scripts(selected, notes: list, failures: list) -> list:
-    """Import the selected scripts; missing ones become notes, broken ones failures."""
+def import_scripts(selected, failures: list) -> list:
+    """Import the selected scripts; one that does not import is a failure (the others go on)."""
     modules = []
-    for name, required in SCRIPTS:
+    for name in SCRIPTS:
         if selected is not None and _short(name) not in selected:
             continue
         try:
             modules.append(importlib.import_module(name))
-        except ImportError as exc:
-            if isinstance(exc, ModuleNotFoundError) and exc.name == name and not required:
-                notes.append(f"{_short(name)}: not available (module {name} not found), skipped")
-                print(f"[run_all] {_short(name)}: not available, skipped", file=sys.stderr)
-            else:
-                traceback.print_exc()
-                failures.append((_short(name), f"import failed: {exc!r}"))
-        except Exception as exc:  # a script that crashes on import is a failure, not a reason to stop
+        except Exception as exc:
             traceback.print_exc()
             failures.append((_short(name), f"import failed: {exc!r}"))
     return modules
 
 
-def collect_specs(context, modules, failures: list) -> tuple[dict, list]:
-    """{script: its RunSpecs} for every script that has ``runs``, and the union of their ``peer_runs``."""
-    specs, peer_specs = {}, {}
+def collect_jobs(context, modules, failures: list) -> dict:
+    """{script: its jobs} (``runs`` and ``peer_runs``) for every script."""
+    jobs = {}
     for module in modules:
         try:
-            if hasattr(module, "runs"):
-                specs[_short(module.__name__)] = list(module.runs(context))
+            found = list(module.runs(context)) if hasattr(module, "runs") else []
             if hasattr(module, "peer_runs"):
-                peer_specs.update((spec.key(), spec) for spec in module.peer_runs(context))
+                found += list(module.peer_runs(context))
+            jobs[_short(module.__name__)] = found
         except Exception as exc:
             traceback.print_exc()
             failures.append((_short(module.__name__), f"runs() failed: {exc!r}"))
-    return specs, sorted(peer_specs.values(), key=lambda s: -s.frames())
+    return jobs
 
 
-def grid_summary(context, specs_by_script: dict, peer_specs: list) -> tuple[list, dict, str]:
-    """The union of the runs (unique, longest first), counts, and a printable summary."""
-    version = context.cache.version
-    unique = {}
+def job_cost(job) -> float:
+    """Work of a job in 600-particle NRMLC frames (the particle count scales the time
+    about linearly; the exact constrained coder is about 1.3x slower)."""
+    params = getattr(job, "params", None)
+    if params is None:  # an OpenCV peer
+        return job.frames() * ESTIMATE_FPS_PER_WORKER / ESTIMATE_PEER_FPS
+    factor = params.n_particles / 600.0
+    if params.coding == "constrained":
+        factor *= 1.3
+    return job.frames() * factor
+
+
+def grid_summary(context, jobs_by_script: dict) -> tuple[list, dict, str]:
+    """The union of the jobs, counts, and a printable summary (per script; shared jobs counted once)."""
+    cache = context.cache
+    unique: dict = {}
     lines = []
-    for script, specs in specs_by_script.items():
-        keys = {s.key(version): s for s in specs}
-        lines.append(f"  {script}: {len(keys)} runs, {sum(spec_frames(s) for s in keys.values())} frames")
+    for script, jobs in jobs_by_script.items():
+        keys = {cache.path(j): j for j in jobs}
+        nrmlc = [j for j in keys.values() if getattr(j, "uses_kernels", False)]
+        new = [p for p in keys if p not in unique]
+        lines.append(f"  {script}: {len(nrmlc)} NRMLC runs, {sum(j.frames() for j in nrmlc)} frames"
+                     + (f"; {len(keys) - len(nrmlc)} OpenCV runs" if len(keys) > len(nrmlc) else "")
+                     + f" ({sum(keys[p].frames() for p in new)} frames not already counted above)")
         unique.update(keys)
-    union = sorted(unique.values(), key=lambda s: -spec_frames(s))
-    missing = [s for s in union if not context.cache.has(s)]
-    frames = sum(spec_frames(s) for s in union)
-    missing_frames = sum(spec_frames(s) for s in missing)
-    peer_cache = peers.cache_for(context)
-    peer_missing = [s for s in peer_specs if not peer_cache.has(s)]
-    peer_frames = sum(s.frames() for s in peer_specs)
-    peer_missing_frames = sum(s.frames() for s in peer_missing)
+    union = list(unique.values())
+    present = {path for path in unique if path.is_file()}
+    nrmlc = [j for j in union if getattr(j, "uses_kernels", False)]
+    peers_ = [j for j in union if not getattr(j, "uses_kernels", False)]
+    frames = sum(j.frames() for j in nrmlc)
+    missing_frames = sum(j.frames() for j in nrmlc if cache.path(j) not in present)
+    peer_frames = sum(j.frames() for j in peers_)
+    peer_missing = sum(j.frames() for j in peers_ if cache.path(j) not in present)
     workers = context.jobs or os.cpu_count() or 1
-    estimate = (missing_frames / ESTIMATE_FPS_PER_WORKER + peer_missing_frames / ESTIMATE_PEER_FPS) / workers / 60
-    text = "\n".join([f"[run_all] grid: {len(union)} NRMLC runs, {frames} frames ({frames - missing_frames} cached, "
-                      f"{missing_frames} to compute); {len(peer_specs)} OpenCV runs, {peer_frames} frames "
-                      f"({peer_missing_frames} to compute); shared runs counted once. Estimate: "
-                      f"~{estimate:.0f} min on {workers} worker(s) at ~{ESTIMATE_FPS_PER_WORKER:.0f} fps each"]
+    cost = sum(job_cost(j) for j in union if cache.path(j) not in present)
+    minutes = cost / ESTIMATE_FPS_PER_WORKER / min(workers, 2 * (os.cpu_count() or 1)) / 60
+    text = "\n".join([f"[run_all] grid: {len(nrmlc)} NRMLC runs, {frames} frames ({frames - missing_frames} cached, "
+                      f"{missing_frames} to compute); {len(peers_)} OpenCV runs, {peer_frames} frames "
+                      f"({peer_missing} to compute). Estimate: ~{minutes:.0f} min on {workers} worker(s) "
+                      f"(~{cost:.0f} 600-particle frame equivalents at ~{ESTIMATE_FPS_PER_WORKER:.0f} fps each)"]
                      + lines)
-    counts = {"runs": len(union), "frames": frames, "missing_frames": missing_frames,
-              "peer_runs": len(peer_specs), "peer_frames": peer_frames}
-    return missing, counts, text
+    counts = {"runs": len(nrmlc), "frames": frames, "missing_frames": missing_frames,
+              "peer_runs": len(peers_), "peer_frames": peer_frames}
+    return union, counts, text
 
 
-def warm_up() -> None:
-    """Load (or compile) the tracker's numba kernels before any timed run.
-
-    A process's first tracking run pays for loading the compiled kernels inside
-    its timed ``init``/``update``; on short sequences that halves its fps. So
-    every worker tracks a few synthetic frames with each coder first.
-    """
-    from nrmlc.data import SyntheticSequence, SyntheticSpec
-    from nrmlc.tracker.params import TrackerParams
-    from nrmlc.tracker.run import track_sequence
-
-    sequence = SyntheticSequence(SyntheticSpec(name="warm-up", seed=0, n_frames=7))
-    for coding in ("regularized", "constrained"):
-        # 7 frames: past the first template update (every 5 frames), so its kernels load too.
-        track_sequence(sequence, TrackerParams(n_particles=20, coding=coding), n_frames=7)
-
-
-def _warm_worker() -> None:
-    from nrmlc.config import set_threads
-
-    set_threads(1)
-    warm_up()
-
-
-def run_grid(context, missing: list, peer_specs: list) -> None:
-    """Compute the missing NRMLC runs and the live OpenCV runs in one pool of warmed-up workers."""
-    executor, own = context.executor, False
-    jobs = context.jobs or os.cpu_count() or 1
-    if executor is None and jobs > 1 and (missing or peer_specs):
-        executor = concurrent.futures.ProcessPoolExecutor(max_workers=jobs, initializer=_warm_worker)
-        own = True
-    elif executor is None and missing:
-        from nrmlc.config import set_threads
-
-        set_threads(1)
-        warm_up()
-    try:
-        if missing:
-            context.cache.run(missing, executor=executor, jobs=context.jobs)  # longest runs first
-        if peer_specs:
-            peers.cache_for(context).run(peer_specs, executor=executor, jobs=context.jobs)
-    finally:
-        if own:
-            executor.shutdown(wait=True, cancel_futures=True)
+def run_grid(context, union: list) -> None:
+    """Compute every missing job in one pool of warmed-up workers, longest first."""
+    context.cache.ensure(union, executor=context.executor, jobs=context.jobs)
 
 
 def run_scripts(context, modules, failures: list) -> list[dict]:
@@ -195,15 +165,19 @@ def run_scripts(context, modules, failures: list) -> list[dict]:
 
 
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(prog="python -m experiments.run_all",
-                                     description="Run every experiment and write figures/REPORT.md.")
+    parser = argparse.ArgumentParser(
+        prog="python -m experiments.run_all",
+        description="Run every experiment (figures, tables, ablations) and write REPORT.md beside them. "
+                    "Without --data: the synthetic suite. Runs are cached in .cache/runs; a rerun computes "
+                    "only what is missing.")
     add_arguments(parser)
     parser.add_argument("--dask", default=None, metavar="SCHEDULER_ADDRESS",
                         help="run the grid on a Dask distributed cluster (needs the 'distributed' package)")
     parser.add_argument("--only", default=None, metavar="SCRIPT[,SCRIPT]",
-                        help="run only these scripts (short names, e.g. fig4_lambda_sweep,ablations)")
+                        help="run only these scripts (short names: " + ", ".join(_short(n) for n in SCRIPTS) + ")")
     parser.add_argument("--dry-run", action="store_true",
-                        help="print the size of the grid (frames to track, estimated time) and stop")
+                        help="print the grid (runs and frames per script, how many are cached, estimated time) "
+                             "and stop without tracking")
     return parser
 
 
@@ -214,10 +188,10 @@ def main(argv=None) -> int:
     args = parser.parse_args(argv)
     selected = None if args.only is None else {s.strip() for s in args.only.split(",") if s.strip()}
     if selected is not None:
-        unknown = selected - {_short(n) for n, _ in SCRIPTS}
+        unknown = selected - {_short(n) for n in SCRIPTS}
         if unknown:
             parser.error(f"--only: unknown script(s) {', '.join(sorted(unknown))}; "
-                         f"choose from {', '.join(_short(n) for n, _ in SCRIPTS)}")
+                         f"choose from {', '.join(_short(n) for n in SCRIPTS)}")
     try:
         context = context_from_namespace(args)
         context.sequences()  # an empty or broken data root fails here, with the file named
@@ -239,14 +213,14 @@ def main(argv=None) -> int:
     try:
         print(f"[run_all] data: {context.data_label}; {len(context.sequences())} sequences; "
               f"{context.describe_grid()}", file=sys.stderr)
-        modules = import_scripts(selected, notes, failures)
-        specs, peer_specs = collect_specs(context, modules, failures)
-        missing, counts, summary = grid_summary(context, specs, peer_specs)
+        modules = import_scripts(selected, failures)
+        jobs = collect_jobs(context, modules, failures)
+        union, counts, summary = grid_summary(context, jobs)
         print(summary, file=sys.stderr, flush=True)
         if args.dry_run:
             return 1 if failures else 0
         try:
-            run_grid(context, missing, peer_specs)
+            run_grid(context, union)
         except Exception as exc:
             # The scripts will retry what is missing and fail one by one; say where it started.
             traceback.print_exc()

@@ -19,7 +19,7 @@ import numpy as np
 
 from experiments.common import save_figure
 from experiments.analysis_common import (
-    LAMBDAS, PAPER_A_RANGE, PAPER_GRAM_BOUND, Budget, budget_for, collect_many, dictionary_weights, fmt,
+    LAMBDAS, PAPER_A_RANGE, PAPER_GRAM_BOUND, Budget, budget_for, collect_many, collections_for, dictionary_weights, fmt,
     tracker_params,
     describe_params, get_context, limit, max_offdiag_row_sum, percentiles, pooled, strictly_dd, sum_to_one_codes,
 )
@@ -103,6 +103,12 @@ def tracker_agreement(collections: list[dict], grams: np.ndarray, p) -> dict:
     diff_c = max(float(np.abs(c - coefficients[:, j, : c.shape[1]]).max()) for j, c in enumerate(codes_by_size))
     w = dictionary_weights(grams[:, : p.k_max, : p.k_max], codes_by_size, p.beta)
     return {"lambda": p.lam, "beta": p.beta, "max_abs_diff_c": diff_c, "max_abs_diff_w": float(np.abs(w - weights).max())}
+
+
+def runs(context, budget: Budget | None = None) -> list:
+    """The recorded internals this script reads (one collection per given sequence)."""
+    budget = budget_for(context, budget, SYNTHETIC_BUDGET, REAL_BUDGET)
+    return collections_for(context, limit(context.sequences(), budget), budget)
 
 
 def main(context=None, budget: Budget | None = None) -> dict:

@@ -25,8 +25,7 @@ import numpy as np
 
 from experiments import paper_numbers as paper
 from experiments import peers
-from experiments.common import (clean, collect_and_plot, fmt, mean_std, paper_name, save_figure, score,
-                                spec_frames, write_csv)
+from experiments.common import clean, collect_and_plot, fmt, mean_std, paper_name, save_figure, score, write_csv
 from nrmlc import io
 from nrmlc.metrics import PRECISION_THRESHOLDS, SUCCESS_THRESHOLDS
 
@@ -135,7 +134,7 @@ def collect(context) -> dict:
             "averages": averages, "notes": notes, "paper_names": {s.name: paper_name(s.name) for s in sequences},
             "seeds": list(context.seeds),
             "frames": {s.name: context.n_frames(s) for s in sequences},
-            "grid_frames": sum(spec_frames(s) for s in specs)}
+            "grid_frames": sum(s.frames() for s in specs), "max_frames": context.max_frames}
 
 
 def _averages(cells, per_seed, sequences, columns) -> dict:
@@ -164,13 +163,19 @@ def _averages(cells, per_seed, sequences, columns) -> dict:
     return out
 
 
-def _marked(cell: dict, key: str, digits: int) -> str:
+#: Beside a paper number when our runs are cut to the first frames (``--max-frames``).
+FULL = " (full seq.)"
+
+
+def _marked(cell: dict, key: str, digits: int, capped: bool = False) -> str:
     if cell is None:
         return "–"
     text = fmt(cell.get(key), digits, cell.get(f"{key}_std"))
     sources = cell.get("sources", [cell.get("source")])
     if "paper" in sources:
         text += DAGGER if sources == ["paper"] else MIXED
+        if capped:
+            text += FULL
     if cell.get("of") and cell.get("n_sequences") != cell.get("of"):
         text += f" ({cell['n_sequences']}/{cell['of']})"
     return text
@@ -178,23 +183,26 @@ def _marked(cell: dict, key: str, digits: int) -> str:
 
 def markdown_table(data: dict, key: str, digits: int, title: str, with_fps: bool) -> str:
     columns = data["columns"]
+    capped = bool(data.get("max_frames"))
+    if capped:
+        title += f" (ours: first {data['max_frames']} frames of each sequence only)"
     lines = [f"**{title}**", "", "| Sequence | " + " | ".join(columns) + " |",
              "|---" * (len(columns) + 1) + "|"]
     for block, label, names in data["blocks"]:
         lines.append(f"| *{label}* |" + " |" * len(columns))
         for name in names:
             shown = name if data["paper_names"].get(name) in (None, name) else f"{name} ({data['paper_names'][name]})"
-            lines.append(f"| {shown} | " + " | ".join(_marked(data["cells"][name].get(c), key, digits)
+            lines.append(f"| {shown} | " + " | ".join(_marked(data["cells"][name].get(c), key, digits, capped)
                                                    for c in columns) + " |")
         averages = data["averages"][block]
         lines.append(f"| **avg. ({len(names)} seq.)** | " + " | ".join(
-            _marked(averages.get(c), key, digits) for c in columns) + " |")
+            _marked(averages.get(c), key, digits, capped) for c in columns) + " |")
     table = paper.OVERLAP_AVERAGE if key == "overlap" else paper.CLE_AVERAGE
     row = ["–"] * len(columns)
     for i, c in enumerate(columns):
         tracker = "Ours" if c == OURS_PAPER else c
         if c != OURS and tracker in table:
-            row[i] = fmt(table[tracker], digits) + DAGGER
+            row[i] = fmt(table[tracker], digits) + DAGGER + (FULL if capped else "")
     lines.append("| paper avg. (all 12 seq.) | " + " | ".join(row) + " |")
     if with_fps:
         row = []

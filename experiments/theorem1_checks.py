@@ -23,7 +23,7 @@ import numpy as np
 
 from experiments.common import save_figure
 from experiments.analysis_common import (
-    LAMBDAS, N_NEAREST, PAPER_A_RANGE, PAPER_GRAM_BOUND, Budget, budget_for, collect_many, describe_params, fmt,
+    LAMBDAS, N_NEAREST, PAPER_A_RANGE, PAPER_GRAM_BOUND, Budget, budget_for, collect_many, collections_for, describe_params, fmt,
     get_context, limit, tracker_params, max_offdiag_row_sum, pooled, strictly_dd, sum_to_one_codes,
 )
 from nrmlc import io
@@ -167,6 +167,12 @@ def _example(grams: np.ndarray, mask: np.ndarray, lam: float) -> dict | None:
     inverse = np.linalg.inv(F)
     return {"lambda": lam, "K": len(G), "F": np.round(F, 6).tolist(), "F_inverse": np.round(inverse, 4).tolist(),
             "c": np.round(inverse.sum(axis=1), 4).tolist()}
+
+
+def runs(context, budget: Budget | None = None) -> list:
+    """The recorded internals this script reads."""
+    budget = budget_for(context, budget, SYNTHETIC_BUDGET, REAL_BUDGET)
+    return collections_for(context, limit(context.paper_sequences() or context.sequences(), budget), budget)
 
 
 def main(context=None, budget: Budget | None = None) -> dict:

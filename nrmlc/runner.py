@@ -1,30 +1,50 @@
-"""Cached, resumable grids of tracking runs.
+"""One cache for every expensive job: cached, resumable grids on any Executor.
 
-A *run* is one (sequence, parameter set, seed, frame count). Its result is
-stored under ``<cache>/<key>.npz`` with a ``<key>.json`` beside it recording
-what was run; the key hashes the sequence's identity, the parameters, the
-seed, the frame count and the *code version* (a hash of the sources that
-decide the boxes). So:
+A *job* is anything with
 
-- a rerun skips every run whose file is there (an interrupted grid resumes);
+- ``key(version) -> str`` and ``description(version) -> dict``: what identifies
+  it (``version`` is :func:`code_version`; a job whose result does not depend on
+  our sources may ignore it);
+- ``frames() -> int``: how many frames it tracks (for progress and estimates);
+- ``execute() -> dict`` of numpy arrays: the work, run in a worker process;
+- ``result(arrays)``: the object callers get back from the stored arrays;
+- ``folder``: a sub-folder of the cache ("" for tracking runs);
+- ``label``: free text for progress lines.
+
+:class:`RunSpec` (one tracking run) is the main one; the experiments add live
+OpenCV peer runs and recorded tracker internals. Each result is stored under
+``<cache>/<folder>/<key>.npz`` with a ``<key>.json`` beside it recording what
+was run. So:
+
+- a rerun skips every job whose file is there (an interrupted grid resumes);
 - changing one parameter recomputes exactly the runs that use it;
 - changing tracker or kernel code recomputes everything it could affect;
 - files are written atomically (:mod:`nrmlc.io`), so a killed run leaves no
-  corrupt result, only missing ones.
+  corrupt result, only missing ones; a file damaged some other way (a full
+  disk, a copy cut short) counts as missing, with a warning naming it.
 
-Runs go to any :class:`concurrent.futures.Executor`. By default a process
+Jobs go to any :class:`concurrent.futures.Executor`. By default a process
 pool whose workers each use one thread for numba, OpenBLAS and OpenCV (on 2
 cores, 2 single-threaded workers beat 1 two-threaded worker and never
-oversubscribe). A Dask ``distributed`` client's ``get_executor()`` works too.
+oversubscribe). Its processes start from a fresh interpreter (``forkserver``,
+or ``spawn`` where that does not exist), never by forking this one: a process
+that has used GNU OpenMP (numba's threads) cannot fork safely. A Dask
+``distributed`` client's ``get_executor()`` works too.
 """
 from __future__ import annotations
 
 import concurrent.futures as futures
 import hashlib
 import json
+import multiprocessing
 import os
+import sys
+import time
+import warnings
+import zipfile
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import ClassVar
 
 import numpy as np
 
@@ -38,6 +58,12 @@ from nrmlc.tracker.run import TrackResult, track_sequence
 _RESULT_SOURCES = ("geometry.py", "config.py", "data", "kernels", "tracker")
 
 DEFAULT_CACHE = Path(".cache") / "runs"
+
+#: Seconds between plain progress lines when stderr is not a terminal.
+PROGRESS_INTERVAL = 30.0
+
+#: What reading a damaged ``.npz`` raises.
+_DAMAGED = (zipfile.BadZipFile, OSError, ValueError, EOFError, KeyError)
 
 
 def code_version() -> str:
@@ -59,6 +85,20 @@ def sequence_identity(sequence) -> str:
     return sequence.identity
 
 
+def frames_tracked(sequence, n_frames: int | None) -> int:
+    """Frames a run over ``sequence`` tracks: all of them, or the first ``n_frames`` (at least 1).
+
+    The one rule for every kind of job (tracking runs, peer runs, recorded internals).
+    """
+    n = len(sequence)
+    return n if n_frames is None else max(1, min(n, int(n_frames)))
+
+
+def _hash(description: dict) -> str:
+    text = json.dumps(description, sort_keys=True, default=str)
+    return hashlib.sha256(text.encode()).hexdigest()[:24]
+
+
 @dataclass(frozen=True)
 class RunSpec:
     """One tracking run: what to track and how.
@@ -71,7 +111,7 @@ class RunSpec:
     n_frames : int or None
         Track only the first frames (None: all).
     label : str
-        Free text for progress bars and reports (not part of the key).
+        Free text for progress lines and reports (not part of the key).
     recentre_every : int
         Diagnostics: 0 (an ordinary run) or move the estimate to the ground
         truth after every this many frames (see :func:`track_sequence`).
@@ -84,7 +124,13 @@ class RunSpec:
     label: str = ""
     recentre_every: int = 0
 
+    #: Tracking runs live at the top of the cache.
+    folder: ClassVar[str] = ""
+    #: Runs the numba kernels (so workers load them before timing anything).
+    uses_kernels: ClassVar[bool] = True
+
     def description(self, version: str) -> dict:
+        # Do not change: it decides the key of every cached run (tests/test_runner.py pins one).
         description = {"sequence": sequence_identity(self.sequence), "sequence_name": self.sequence.name,
                        "params": self.params.as_dict(), "seed": self.seed, "n_frames": self.n_frames,
                        "code_version": version}
@@ -93,113 +139,283 @@ class RunSpec:
         return description
 
     def key(self, version: str) -> str:
-        text = json.dumps(self.description(version), sort_keys=True, default=str)
-        return hashlib.sha256(text.encode()).hexdigest()[:24]
+        return _hash(self.description(version))
+
+    def frames(self) -> int:
+        return frames_tracked(self.sequence, self.n_frames)
+
+    def execute(self) -> dict:
+        truth = self.sequence.groundtruth if self.recentre_every else None
+        result = track_sequence(self.sequence, self.params, seed=self.seed, n_frames=self.n_frames,
+                                recentre_boxes=truth, recentre_every=self.recentre_every)
+        return result.to_arrays()
+
+    def result(self, arrays: dict) -> TrackResult:
+        return TrackResult.from_arrays(arrays)
 
 
-def _execute(spec: RunSpec, threads: int | None) -> dict:
+def _execute(job, threads: int | None) -> dict:
+    """Run one job (in a worker process, or in this one with ``threads``)."""
     if threads is not None:
         from nrmlc.config import set_threads
 
         set_threads(threads)
-    truth = spec.sequence.groundtruth if spec.recentre_every else None
-    result = track_sequence(spec.sequence, spec.params, seed=spec.seed, n_frames=spec.n_frames,
-                            recentre_boxes=truth, recentre_every=spec.recentre_every)
-    return result.to_arrays()
+    return job.execute()
+
+
+# ------------------------------------------------------------------ processes
+def warm_up() -> None:
+    """Load (or compile) the tracker's numba kernels before any timed run.
+
+    A process's first tracking run would otherwise pay for loading the
+    compiled kernels inside its timed ``init``/``update``. 7 frames: past the
+    first template update (every 5 frames), so its kernels load too.
+    """
+    from nrmlc.data import SyntheticSequence, SyntheticSpec
+
+    sequence = SyntheticSequence(SyntheticSpec(name="warm-up", seed=0, n_frames=7))
+    for coding in ("regularized", "constrained"):
+        track_sequence(sequence, TrackerParams(n_particles=20, coding=coding), n_frames=7)
+
+
+def kernels_cached() -> bool:
+    """Whether numba's on-disk cache holds every compiled module, newer than its source.
+
+    A heuristic (numba decides for itself), good enough to tell the user that a
+    run will start by compiling.
+    """
+    root = Path(__file__).resolve().parent
+    for source in root.rglob("*.py"):
+        text = source.read_text(errors="replace")
+        if "njit" not in text or "cache" not in text:
+            continue
+        indexes = list((source.parent / "__pycache__").glob(f"{source.stem}.*.nbi"))
+        if not indexes or min(p.stat().st_mtime for p in indexes) < source.stat().st_mtime:
+            return False
+    return True
+
+
+_kernels_ready = False
+
+
+def prepare_kernels(stream=None) -> float:
+    """Compile or load the kernels in this process, once; say so when it compiles.
+
+    Returns the seconds it took (0 when already done). Called before workers
+    start, so they load compiled code from the cache instead of compiling it
+    two at a time, and so no compile time is counted as tracking time.
+    """
+    global _kernels_ready
+    if _kernels_ready:
+        return 0.0
+    stream = sys.stderr if stream is None else stream
+    compiling = not kernels_cached()
+    if compiling:
+        print("[nrmlc] compiling the numba kernels (once, after an install or a code change; about 20-60 s; "
+              "not counted as tracking time) ...", file=stream, flush=True)
+    start = time.perf_counter()
+    warm_up()
+    seconds = time.perf_counter() - start
+    if compiling:
+        print(f"[nrmlc] kernels compiled in {seconds:.0f} s", file=stream, flush=True)
+    _kernels_ready = True
+    return seconds
 
 
 def _worker_init() -> None:
     from nrmlc.config import set_threads
 
     set_threads(1)
+    warm_up()
 
 
+def process_pool(workers: int) -> futures.ProcessPoolExecutor:
+    """A pool of ``workers`` single-threaded, warmed-up processes started from a fresh
+    interpreter (forkserver, else spawn): safe after this process used OpenMP."""
+    methods = multiprocessing.get_all_start_methods()
+    context = multiprocessing.get_context("forkserver" if "forkserver" in methods else "spawn")
+    return futures.ProcessPoolExecutor(max_workers=workers, mp_context=context, initializer=_worker_init)
+
+
+# ------------------------------------------------------------------- progress
+class Progress:
+    """Frames done of a batch of jobs: a tqdm bar on a terminal, else a plain line
+    every :data:`PROGRESS_INTERVAL` seconds (runs done/total, frames, fps, ETA)."""
+
+    def __init__(self, total_frames: int, n_jobs: int, enabled: bool = True, stream=None,
+                 interval: float = PROGRESS_INTERVAL) -> None:
+        self.stream = sys.stderr if stream is None else stream
+        self.total, self.n_jobs, self.interval = int(total_frames), int(n_jobs), float(interval)
+        self.frames = self.jobs = 0
+        self.start = self.last = time.monotonic()
+        self.enabled = enabled
+        self.bar = None
+        if enabled and getattr(self.stream, "isatty", lambda: False)():
+            from tqdm import tqdm
+
+            self.bar = tqdm(total=self.total, unit="frame", desc=f"{n_jobs} runs", file=self.stream)
+        elif enabled:
+            self._line("started")
+
+    def _line(self, what: str) -> None:
+        elapsed = time.monotonic() - self.start
+        rate = self.frames / elapsed if elapsed > 0 else 0.0
+        eta = f", ETA {(self.total - self.frames) / rate / 60:.1f} min" if rate > 0 and self.frames < self.total else ""
+        print(f"[runs] {what}: {self.jobs}/{self.n_jobs} runs, {self.frames}/{self.total} frames, "
+              f"{rate:.0f} frames/s, {elapsed / 60:.1f} min{eta}", file=self.stream, flush=True)
+
+    def update(self, frames: int, title: str = "") -> None:
+        self.frames += int(frames)
+        self.jobs += 1
+        if self.bar is not None:
+            self.bar.update(int(frames))
+            self.bar.set_postfix_str(title, refresh=False)
+        elif self.enabled and time.monotonic() - self.last >= self.interval:
+            self.last = time.monotonic()
+            self._line("progress")
+
+    def close(self) -> None:
+        if self.bar is not None:
+            self.bar.close()
+        elif self.enabled:
+            self._line("done" if self.jobs == self.n_jobs else "stopped")
+
+
+# ---------------------------------------------------------------------- cache
 class RunCache:
-    """Results of runs on disk, keyed by :meth:`RunSpec.key`."""
+    """Results of jobs on disk, ``<folder>/<job.folder>/<job key>.npz``."""
 
     def __init__(self, folder: str | os.PathLike = DEFAULT_CACHE) -> None:
         self.folder = Path(folder)
         self.version = code_version()
 
-    def path(self, spec: RunSpec) -> Path:
-        return self.folder / f"{spec.key(self.version)}.npz"
+    def path(self, job) -> Path:
+        return self.folder / job.folder / f"{job.key(self.version)}.npz"
 
-    def has(self, spec: RunSpec) -> bool:
-        return self.path(spec).is_file()
+    def has(self, job) -> bool:
+        """Whether the job's file is there and looks whole (a cheap check; :meth:`run` reads it)."""
+        path = self.path(job)
+        return path.is_file() and zipfile.is_zipfile(path)
 
-    def load(self, spec: RunSpec) -> TrackResult:
-        with np.load(self.path(spec)) as arrays:
-            return TrackResult.from_arrays(dict(arrays))
+    def _read(self, path: Path) -> dict:
+        with np.load(path) as arrays:
+            return {name: arrays[name] for name in arrays.files}
 
-    def store(self, spec: RunSpec, arrays: dict) -> None:
+    def load(self, job):
+        return job.result(self._read(self.path(job)))
+
+    def store(self, job, arrays: dict) -> None:
         # The result first, then its description: a present .npz is always complete.
-        io.write_npz(self.path(spec), **arrays)
-        io.write_json(self.path(spec).with_suffix(".json"), spec.description(self.version))
+        io.write_npz(self.path(job), **arrays)
+        io.write_json(self.path(job).with_suffix(".json"), job.description(self.version))
 
-    def run(self, specs: list[RunSpec], executor: futures.Executor | None = None, jobs: int | None = None,
-            progress: bool = True) -> list[TrackResult]:
-        """Make sure every run of ``specs`` is cached, then load them all.
+    def _readable(self, path: Path):
+        """The stored arrays, or None (with a warning naming the file) if it is damaged."""
+        if not path.is_file():
+            return None
+        try:
+            return self._read(path)
+        except _DAMAGED as exc:
+            warnings.warn(f"{path}: damaged cache file ({type(exc).__name__}: {exc}); computing it again",
+                          stacklevel=3)
+            return None
+
+    def missing(self, jobs: list) -> list:
+        """The distinct jobs of ``jobs`` whose file is absent or cut short (a cheap check:
+        damage inside a file is found when :meth:`run` reads it)."""
+        unique = {}
+        for job in jobs:
+            unique.setdefault(self.path(job), job)
+        missing = []
+        for path, job in unique.items():
+            if path.is_file() and not zipfile.is_zipfile(path):
+                warnings.warn(f"{path}: damaged cache file (not a whole .npz); computing it again", stacklevel=2)
+            if not (path.is_file() and zipfile.is_zipfile(path)):
+                missing.append(job)
+        return missing
+
+    def ensure(self, specs: list, executor: futures.Executor | None = None, jobs: int | None = None,
+               progress: bool = True) -> list:
+        """Compute every missing job of ``specs`` (longest first) without loading the others;
+        returns the jobs computed."""
+        missing = sorted(self.missing(specs), key=lambda job: -job.frames())
+        if missing:
+            self._compute(missing, executor, jobs, progress)
+        return missing
+
+    def run(self, specs: list, executor: futures.Executor | None = None, jobs: int | None = None,
+            progress: bool = True) -> list:
+        """Make sure every job of ``specs`` is cached, then load them all.
 
         Parameters
         ----------
-        specs : list of RunSpec
+        specs : list of jobs (RunSpec or any job, see the module docstring)
         executor : concurrent.futures.Executor, optional
             Where to run missing work. Default: a process pool of ``jobs`` workers
             (default: the number of cores), one thread each.
         jobs : int, optional
         progress : bool
-            Show a progress bar on stderr.
+            Show progress on stderr.
 
         Returns
         -------
-        results : list of TrackResult, in the order of ``specs``.
+        results : list, ``job.result(...)`` in the order of ``specs``.
         """
-        unique = {}
-        for spec in specs:
-            unique.setdefault(spec.key(self.version), spec)
-        missing = [spec for key, spec in unique.items() if not self.has(spec)]
+        stored, unique = {}, {}
+        for job in specs:
+            unique.setdefault(self.path(job), job)
+        missing = []
+        for path, job in unique.items():
+            arrays = self._readable(path)
+            if arrays is None:
+                missing.append(job)
+            else:
+                stored[path] = arrays
         if missing:
-            self._compute(missing, executor, jobs, progress)
-        return [self.load(spec) for spec in specs]
+            missing.sort(key=lambda job: -job.frames())  # longest first: no worker left alone at the end
+            for job, arrays in self._compute(missing, executor, jobs, progress):
+                stored[self.path(job)] = arrays
+        return [job.result(stored[self.path(job)]) for job in specs]
 
-    def _compute(self, missing, executor, jobs, progress) -> None:
-        from tqdm import tqdm
+    def _compute(self, missing: list, executor, jobs, progress) -> list:
+        """Run ``missing``, storing each result as soon as it exists; returns [(job, arrays)]."""
+        done: list = []
+        bar = Progress(sum(job.frames() for job in missing), len(missing), enabled=progress)
 
-        def n_frames(spec: RunSpec) -> int:
-            return len(spec.sequence) if spec.n_frames is None else min(spec.n_frames, len(spec.sequence))
+        def finished(job, arrays: dict) -> None:
+            self.store(job, arrays)
+            done.append((job, arrays))
+            bar.update(job.frames(), getattr(job, "label", ""))
 
-        bar = tqdm(total=sum(n_frames(s) for s in missing), unit="frame", desc=f"{len(missing)} runs",
-                   disable=not progress or None)
-
-        def finished(spec: RunSpec, arrays: dict) -> None:
-            self.store(spec, arrays)
-            bar.update(n_frames(spec))
-            bar.set_postfix_str(f"{spec.label or spec.sequence.name} seed {spec.seed}", refresh=False)
-
-        jobs = jobs or os.cpu_count() or 1
+        workers = jobs or os.cpu_count() or 1
         try:
-            if executor is None and jobs == 1:
-                # In-process, one run at a time: each result is stored as soon as it exists.
-                for spec in missing:
-                    finished(spec, _execute(spec, 1))
-                return
+            uses_kernels = any(getattr(job, "uses_kernels", False) for job in missing)
+            if executor is None and workers == 1:
+                # In-process, one job at a time: each result is stored as soon as it exists.
+                if uses_kernels:
+                    prepare_kernels()
+                for job in missing:
+                    finished(job, _execute(job, 1))
+                return done
             own = executor is None
             if own:
-                executor = futures.ProcessPoolExecutor(max_workers=jobs, initializer=_worker_init)
+                if uses_kernels:
+                    prepare_kernels()  # compile here once, before the workers load the cache
+                executor = process_pool(min(workers, len(missing)))
             try:
-                pending = {executor.submit(_execute, spec, None): spec for spec in missing}
+                pending = {executor.submit(_execute, job, None): job for job in missing}
                 failure: BaseException | None = None
-                for done in futures.as_completed(pending):
-                    if done.cancelled():
+                for future in futures.as_completed(pending):
+                    if future.cancelled():
                         continue
-                    error = done.exception()
+                    error = future.exception()
                     if error is None:
                         # Stored even after another run failed: finished work is never thrown away.
-                        finished(pending[done], done.result())
+                        finished(pending[future], future.result())
                     elif failure is None:
                         failure = error
-                        for future in pending:  # runs not started yet; those running still finish
-                            future.cancel()
+                        for other in pending:  # runs not started yet; those running still finish
+                            other.cancel()
                 if failure is not None:
                     raise failure
             finally:
@@ -207,3 +423,4 @@ class RunCache:
                     executor.shutdown(wait=True, cancel_futures=True)
         finally:
             bar.close()
+        return done

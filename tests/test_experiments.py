@@ -17,17 +17,16 @@ from experiments.common import context_from_args, score
 from nrmlc.data import open_sequence
 
 MY_SCRIPTS = ("table1_table2_accuracy", "fig3_qualitative", "fig4_lambda_sweep", "ablations",
-              "ablation_per_sequence_motion", "ablation_oracle_recentring", "ablation_synthetic_dev")
+              "ablation_per_sequence_motion", "ablation_oracle_recentring")
 OUTPUTS = {"table1_table2_accuracy": (".png", ".csv", ".json"), "fig3_qualitative": (".png", ".json"),
            "fig4_lambda_sweep": (".png", ".csv", ".json"), "ablations": (".png", ".csv", ".json"),
            "ablation_per_sequence_motion": (".png", ".csv", ".json"),
-           "ablation_oracle_recentring": (".png", ".csv", ".json"),
-           "ablation_synthetic_dev": (".png", ".csv", ".json")}
+           "ablation_oracle_recentring": (".png", ".csv", ".json")}
 
 
 def tiny_args(tmp, figures="figures"):
     return ["--seeds", "1", "--sweep-seeds", "1", "--max-frames", "25", "--synthetic-sequences", "1",
-            "--param", "n_particles=100", "--jobs", "1", "--figures", str(tmp / figures), "--cache",
+            "--param", "n_particles=100", "--jobs", "1", "--out", str(tmp / figures), "--cache",
             str(tmp / "cache"), "--only", ",".join(MY_SCRIPTS)]
 
 
@@ -67,10 +66,14 @@ def test_run_all_writes_every_output(grid):
     for stem in OUTPUTS:
         assert f"]({stem}.png)" in report
     assert "Code version" in report and "synthetic suite" in report
-    # 24 distinct tracker configurations on one sequence, one seed, 3 re-centred runs of the
-    # default one, and 8 configurations on the 6 development sequences; the shared ones ran once.
-    assert len(state) == 24 + 3 + 8 * 6 + 1  # plus the OpenCV MIL run
-    assert len(list((tmp / "cache" / "peers").glob("*.npz"))) == 1
+    # Every distinct job of the grid ran once: shared runs (the table's default run is also
+    # Fig. 3's, Fig. 4's lambda = 1 and every ablation family's first row) are one file.
+    context = context_from_args(tiny_args(tmp)[:-2])
+    failures = []
+    jobs = run_all.collect_jobs(context, run_all.import_scripts(set(MY_SCRIPTS), failures), failures)
+    paths = {context.cache.path(job) for script_jobs in jobs.values() for job in script_jobs}
+    assert not failures and len(state) == len(paths) and len(paths) >= 30
+    assert len(list((tmp / "cache" / "peers").glob("*.npz"))) == 1  # OpenCV MIL on the one sequence
 
 
 def test_numbers_are_consistent(grid):
@@ -90,24 +93,6 @@ def test_numbers_are_consistent(grid):
     assert coding["constrained"]["negative_share_c"] == 0.0  # the constraint forbids negative codes
     plain = next(p for p in sweep["points"] if p["label"] == "lambda=beta=0")
     assert coding["plain (λ = β = 0)"]["overlap"] == pytest.approx(plain["overlap"])
-
-
-def test_synthetic_dev_sets_the_ablation_runs_beside_the_development_runs(grid):
-    tmp, _, _ = grid
-    dev = json.loads((tmp / "figures" / "ablation_synthetic_dev.json").read_text())
-    ablations = {f["family"]: {r["label"]: r for r in f["rows"]}
-                 for f in json.loads((tmp / "figures" / "ablations.json").read_text())["families"]}
-    assert [f["family"] for f in dev["families"]] == ["scale noise", "template radii"]
-    assert len(dev["dev_sequences"]) == 6 and dev["dev_seeds"] == [0]
-    for family in dev["families"]:
-        assert [r["label"] for r in family["rows"]] == list(ablations[family["family"]])
-        for row in family["rows"]:
-            assert row["overlap_given"] == pytest.approx(ablations[family["family"]][row["label"]]["overlap"])
-            assert 0 <= row["overlap_dev"] <= 1
-        ranked = sorted((r["overlap_given"] for r in family["rows"]), reverse=True)
-        best = max(family["rows"], key=lambda r: r["overlap_dev"])
-        assert family["best_on_dev"] == best["label"]
-        assert ranked[family["best_on_dev_rank_on_given"] - 1] == pytest.approx(best["overlap_given"])
 
 
 def test_rerun_recomputes_nothing(grid):
@@ -159,7 +144,7 @@ def test_recentring_free_column_is_the_table_run(grid):
 
 
 def test_missing_and_failing_scripts(tmp_path, monkeypatch):
-    """A missing analysis script is a note; a failing one is reported, the others still run, exit 1."""
+    """A script that does not import or fails is reported, the others still run, exit 1."""
     good = types.ModuleType("experiments._test_good")
     good.main = lambda context: {"title": "Good", "figures": [], "markdown": "fine"}
     bad = types.ModuleType("experiments._test_bad")
@@ -170,15 +155,70 @@ def test_missing_and_failing_scripts(tmp_path, monkeypatch):
     bad.main = fail
     monkeypatch.setitem(sys.modules, good.__name__, good)
     monkeypatch.setitem(sys.modules, bad.__name__, bad)
-    monkeypatch.setattr(run_all, "SCRIPTS", (("experiments._test_absent", False), (bad.__name__, False),
-                                             (good.__name__, False)))
-    status = run_all.main(["--figures", str(tmp_path / "f"), "--cache", str(tmp_path / "c"), "--jobs", "1",
+    monkeypatch.setattr(run_all, "SCRIPTS", ("experiments._test_absent", bad.__name__, good.__name__))
+    status = run_all.main(["--out", str(tmp_path / "f"), "--cache", str(tmp_path / "c"), "--jobs", "1",
                            "--synthetic-sequences", "1", "--max-frames", "5"])
     assert status == 1
     report = (tmp_path / "f" / "REPORT.md").read_text()
-    assert "_test_absent: not available" in report
+    assert "_test_absent: FAILED (import failed" in report
     assert "_test_bad: FAILED" in report and "boom" in report
     assert "## Good" in report
+    for package in ("numpy", "numba", "OpenCV", "SciPy", "Python"):
+        assert f"{package} " in report.split("## Notes")[0]
+
+
+def test_outputs_go_to_the_ignored_folder_by_default(tmp_path, monkeypatch):
+    from experiments.common import DEFAULT_OUT, REPO_ROOT
+
+    monkeypatch.delenv("NRMLC_DATA", raising=False)
+    assert context_from_args([]).figures_dir == DEFAULT_OUT == REPO_ROOT / "out" / "figures"
+    assert context_from_args(["--out", str(tmp_path)]).figures_dir == tmp_path
+    ignored = (REPO_ROOT / ".gitignore").read_text().split()
+    assert "out/" in ignored
+
+
+def test_dry_run_prints_the_grid_and_tracks_nothing(tmp_path, capsys, monkeypatch):
+    monkeypatch.delenv("NRMLC_DATA", raising=False)
+    status = run_all.main(["--dry-run", "--cache", str(tmp_path / "c"), "--out", str(tmp_path / "f"),
+                           "--synthetic-sequences", "1", "--max-frames", "10", "--only", "ablations"])
+    err = capsys.readouterr().err
+    assert status == 0 and "NRMLC runs" in err and " frames (0 cached, " in err and "Estimate" in err
+    assert "ablations: " in err
+    assert not (tmp_path / "c").exists() and not (tmp_path / "f").exists()
+
+
+def test_sequence_subset(tmp_path, monkeypatch):
+    from nrmlc.errors import DataError
+
+    monkeypatch.delenv("NRMLC_DATA", raising=False)
+    context = context_from_args(["--synthetic-sequences", "3", "--sequences", "synth-02"])
+    assert [s.name for s in context.sequences()] == ["synth-02"]
+    with pytest.raises(DataError, match="Car4"):
+        context_from_args(["--synthetic-sequences", "2", "--sequences", "Car4"]).sequences()
+
+
+def test_capped_table_marks_the_full_sequence_paper_numbers():
+    from experiments import table1_table2_accuracy as table
+
+    cells = {"Car4": {table.OURS: {"overlap": 0.5, "source": "measured"},
+                      table.OURS_PAPER: {"overlap": 0.9, "source": "paper"}}}
+    data = {"columns": [table.OURS, table.OURS_PAPER], "cells": cells, "paper_names": {"Car4": "Car4"},
+            "blocks": [("paper", "the paper's sequences", ["Car4"])], "fps": {},
+            "averages": {"paper": {}}, "max_frames": 50}
+    text = table.markdown_table(data, "overlap", 2, "Table II", False)
+    assert "first 50 frames" in text and "0.90† (full seq.)" in text
+    data["max_frames"] = None
+    assert "(full seq.)" not in table.markdown_table(data, "overlap", 2, "Table II", False)
+
+
+def test_sequence_sets():
+    from experiments.sequence_sets import DEVELOPMENT_SEQUENCES, PAPER_SEQUENCES, paper_name
+
+    assert len(PAPER_SEQUENCES) == 9 and len(DEVELOPMENT_SEQUENCES) == 12
+    assert not set(PAPER_SEQUENCES) & set(DEVELOPMENT_SEQUENCES)
+    assert all(paper_name(name) in paper_numbers.SEQUENCES for name in PAPER_SEQUENCES)
+    assert [paper_name(n) for n in PAPER_SEQUENCES] == [n for n in paper_numbers.SEQUENCES
+                                                        if n in {paper_name(m) for m in PAPER_SEQUENCES}]
 
 
 def test_paper_tables_are_complete():
