@@ -195,6 +195,9 @@ BAD_INPUT = {
                                  r"groundtruth_rect\.txt:2: expected 4 numbers"),
     "list-missing-root": (_nothing, ["list", "{seq}/nowhere"], r"nowhere: data root not found"),
     # second round (issue 12)
+    "init-box-empty": (_nothing, ["--init-box="], r"--init-box: expected 4 numbers \(x,y,w,h\), got 0"),
+    "particles-disagree": (_nothing, ["--particles", "40", "--param", "n_particles=30"],
+                           r"--particles 40 and --param n_particles=30 disagree"),
     "frame-gap": (_remove("0004.png"), [], r"img: frame numbers jump from 0003\.png to 0005\.png \(frame 4 missing\)"),
     "frame-duplicate": (_copy("0003.png", "0003.jpg"), [], r"img: 0003\.(jpg|png) and 0003\.(jpg|png) have the same"),
     "frame-patterns": (_copy("0003.png", "thumb.png"), [], r"img: frame names follow different patterns"),
