@@ -586,3 +586,18 @@ def test_frame_index_must_be_an_integer(tmp_path):
     for index in (1.5, "1", 1.0):
         with pytest.raises(TypeError):
             sequence.frame(index)
+
+
+@pytest.mark.parametrize("field, value, message", [
+    ("n_frames", 2.5, "n_frames must be an integer"), ("n_frames", "5", "n_frames must be an integer"),
+    ("seed", True, "seed must be an integer"), ("frame_height", 40.5, "frame_height must be an integer"),
+    ("noise_std", float("inf"), "noise_std must be a finite number"),
+    ("motion_period", float("inf"), "motion_period must be a finite number"),
+    ("target_width", float("nan"), "target_width must be a finite number"),
+    ("n_frames", 10**12, r"n_frames must be in 2\.\.1000000"), ("frame_width", 10**6, "frame size must be"),
+])
+def test_synthetic_spec_types_and_bounds(field, value, message):
+    from nrmlc.data import SyntheticSpec
+
+    with pytest.raises(ParameterError, match=message):
+        SyntheticSpec(**{field: value})

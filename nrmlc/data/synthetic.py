@@ -107,6 +107,16 @@ class SyntheticSpec:
     n_distractors: int = 6
 
     def __post_init__(self) -> None:
+        integers = ("seed", "n_frames", "frame_height", "frame_width", "n_distractors")
+        for name in integers:
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
+                raise ParameterError(f"SyntheticSpec {self.name!r}: {name} must be an integer, got {value!r}")
+        for field_name, value in vars(self).items():
+            if field_name != "name" and field_name not in integers and (
+                    isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating))
+                    or not np.isfinite(value)):
+                raise ParameterError(f"SyntheticSpec {self.name!r}: {field_name} must be a finite number, got {value!r}")
         checks = [
             (self.seed >= 0, "seed must be >= 0"),
             (2 <= self.n_frames <= MAX_FRAMES, f"n_frames must be in 2..{MAX_FRAMES}"),
