@@ -16,7 +16,7 @@ import cv2
 import numpy as np
 
 from nrmlc import io
-from nrmlc.errors import ParameterError
+from nrmlc.errors import DataError, ParameterError
 
 #: Containers that OpenCV writes with the mp4v codec (checked before opening, so
 #: that an unknown extension gives our message, not OpenCV's).
@@ -94,6 +94,9 @@ class BoxVideoWriter:
         if not self.frames_written:
             io.discard(self.tmp_path)
             return
+        if os.path.getsize(self.tmp_path) == 0:  # OpenCV reports no write errors (e.g. a full disk)
+            io.discard(self.tmp_path)
+            raise DataError(f"--video {self.path}: the video writer wrote nothing (disk full?); no video written")
         io.commit(self.tmp_path, self.path)
 
     def abort(self) -> None:

@@ -318,3 +318,26 @@ def test_long_output_name_is_written(seq, tmp_path, capsys):
     code, _, err = run_main(["track", seq, "--out", out, "--frames", "2", *FAST], capsys)
     assert code == 0, err
     assert len(read_box_file(out)) == 2 and not temporaries(tmp_path)
+
+
+def test_video_writer_that_wrote_nothing_keeps_the_earlier_video(seq, tmp_path):
+    from nrmlc.errors import DataError
+    from nrmlc.video import BoxVideoWriter
+
+    video = tmp_path / "v.mp4"
+    video.write_bytes(b"an earlier video")
+    writer = BoxVideoWriter(video, open_sequence(seq))
+    writer.writer.release()
+
+    class Silent:  # what OpenCV does on a full disk: accepts frames, writes nothing, reports nothing
+        def write(self, image):
+            pass
+
+        def release(self):
+            pass
+
+    writer.writer = Silent()
+    writer.frames_written = 3
+    with pytest.raises(DataError, match=r"--video .*v\.mp4: the video writer wrote nothing"):
+        writer.close()
+    assert video.read_bytes() == b"an earlier video" and not temporaries(tmp_path)
