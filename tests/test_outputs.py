@@ -328,6 +328,7 @@ def test_video_writer_that_wrote_nothing_keeps_the_earlier_video(seq, tmp_path):
     video.write_bytes(b"an earlier video")
     writer = BoxVideoWriter(video, open_sequence(seq))
     writer.writer.release()
+    writer.tmp_path.write_bytes(b"")  # released before any frame: an empty file, as after a failed write
 
     class Silent:  # what OpenCV does on a full disk: accepts frames, writes nothing, reports nothing
         def write(self, image):
