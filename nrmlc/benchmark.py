@@ -90,8 +90,19 @@ def select_sequences(data_root, names: list[str] | None = None) -> list:
     DataError
         For a name that is not a sequence of the root (the message lists them).
     """
-    from nrmlc.data import list_sequences
+    from nrmlc.data import list_sequences, open_sequence
 
+    if names is not None:
+        # Open only the named folders (the others' warnings are not this run's business) ...
+        chosen = {}
+        for name in names:
+            try:
+                sequence = open_sequence(Path(data_root) / name)
+            except DataError:
+                break  # ... unless a name is not a folder as written: then look it up below
+            chosen.setdefault(sequence.name, sequence)
+        else:
+            return list(chosen.values())
     sequences = list_sequences(data_root)
     if names is None:
         return sequences
