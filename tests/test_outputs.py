@@ -18,7 +18,6 @@ from __future__ import annotations
 
 import os
 import re
-import shutil
 import signal
 import subprocess
 import sys
@@ -33,27 +32,8 @@ from nrmlc import io
 from nrmlc.cli import main
 from nrmlc.data import open_sequence, read_box_file, synthetic_suite, write_otb_sequence
 from nrmlc.errors import ParameterError
-
-REPO_ROOT = Path(__file__).resolve().parent.parent
-N_FRAMES = 6
-FAST = ["--particles", "20", "--param", "n_positive=10", "--param", "n_negative=20", "--param", "max_positive=20"]
-
-
-@pytest.fixture(scope="module")
-def base_folder(tmp_path_factory) -> Path:
-    sequence = synthetic_suite(n_frames=N_FRAMES, size=(96, 128), n_sequences=1)[0]
-    return write_otb_sequence(sequence, tmp_path_factory.mktemp("outputs") / "Seq")
-
-
-@pytest.fixture
-def seq(base_folder, tmp_path) -> Path:
-    return Path(shutil.copytree(base_folder, tmp_path / "Seq"))
-
-
-def run_main(argv, capsys) -> tuple[int, str, str]:
-    code = main([str(a) for a in argv])
-    out, err = capsys.readouterr()
-    return code, out, err
+# The command-line tests' OTB folder (8 small synthetic frames), fast settings and helpers.
+from test_cli import FAST, N_FRAMES, base_folder, run_main, seq, subprocess_env  # noqa: F401 (fixtures)
 
 
 def temporaries(folder: Path) -> list[str]:
@@ -67,10 +47,6 @@ def video_frames(path: Path) -> int:
         count += 1
     capture.release()
     return count
-
-
-def subprocess_env() -> dict:
-    return dict(os.environ, PYTHONPATH=str(REPO_ROOT), PYTHONHASHSEED="0")
 
 
 # ------------------------------------------------- refused before tracking
