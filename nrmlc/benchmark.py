@@ -312,7 +312,10 @@ def add_benchmark_command(commands) -> None:
     bench.add_argument("--out", required=True, metavar="DIR", help="results folder, e.g. results/NRMLC")
     bench.add_argument("--seeds", default="0", help="seeds, e.g. 0-4 or 0,2,5 (default 0)")
     bench.add_argument("--sequences", metavar="A,B", help="only these sequences (default: all)")
-    bench.add_argument("--preset", help="named parameter set (TrackerParams.preset), before --param")
+    from nrmlc.tracker.params import PRESETS
+
+    bench.add_argument("--preset", choices=tuple(PRESETS),
+                       help="named parameter set (TrackerParams.preset; default: 'default'), before --param")
     bench.add_argument("--param", action="append", default=[], metavar="NAME=VALUE",
                        help="any tracker parameter, e.g. --param n_particles=300 (repeatable)")
     bench.add_argument("--max-frames", type=int, metavar="N", help="track only the first N frames of each sequence")

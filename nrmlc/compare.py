@@ -38,6 +38,7 @@ from __future__ import annotations
 import argparse
 import csv
 import io as text_io
+import json
 import math
 import sys
 from dataclasses import dataclass, field
@@ -46,6 +47,7 @@ from pathlib import Path
 import numpy as np
 
 from nrmlc import io
+from nrmlc.benchmark import SEEDS_FOLDER, parse_names, select_sequences
 from nrmlc.errors import DataError, ParameterError
 
 #: How a missing prediction is scored, for ``--help`` and the table's footnote;
@@ -76,6 +78,12 @@ class TrackerScores:
     files : dict of sequence name -> Path or None (no usable file)
     evaluations : dict of sequence name -> nrmlc.metrics.Evaluation
         Every compared sequence has one; a sequence without a file is all failures.
+    seed_runs : list of dict
+        With ``all_seeds``: one ``evaluations``-like dict per scored seed
+        folder (``folder`` itself first, then ``folder/seeds/<seed>``).
+    seed_labels : list of str
+        The seed of each of ``seed_runs`` (the top folder's from its
+        ``benchmark.json``, ``""`` if unknown).
     notes : list of str
         Files not used and why; line-count mismatches.
     """
@@ -84,33 +92,47 @@ class TrackerScores:
     folder: Path
     files: dict = field(default_factory=dict)
     evaluations: dict = field(default_factory=dict)
+    seed_runs: list = field(default_factory=list)
+    seed_labels: list = field(default_factory=list)
     notes: list = field(default_factory=list)
 
     @property
+    def runs(self) -> list:
+        """The scored runs: one dict {sequence: Evaluation} per seed (just ``evaluations`` by default)."""
+        return self.seed_runs or [self.evaluations]
+
+    @property
     def success(self) -> np.ndarray:
-        """(21,) mean over sequences of the success curves."""
-        return np.mean([e.success for e in self.evaluations.values()], axis=0)
+        """(21,) mean over seeds and sequences of the success curves."""
+        return np.mean([[e.success for e in run.values()] for run in self.runs], axis=(0, 1))
 
     @property
     def precision(self) -> np.ndarray:
-        """(51,) mean over sequences of the precision curves."""
-        return np.mean([e.precision for e in self.evaluations.values()], axis=0)
+        """(51,) mean over seeds and sequences of the precision curves."""
+        return np.mean([[e.precision for e in run.values()] for run in self.runs], axis=(0, 1))
+
+    def sequence_auc(self, sequence: str) -> float:
+        """Success AUC on one sequence (mean over seeds)."""
+        return float(np.mean([run[sequence].success_auc for run in self.runs]))
 
     def summary(self) -> dict:
-        """Overall scores (means over sequences) and coverage counts."""
+        """Overall scores (means over seeds and sequences) and coverage counts."""
         from nrmlc.metrics import PRECISION_AT, PRECISION_THRESHOLDS
 
-        evaluations = list(self.evaluations.values())
+        evaluations = [e for run in self.runs for e in run.values()]
         cle = [e.mean_center_error for e in evaluations if not math.isnan(e.mean_center_error)]
         precision_index = int(np.flatnonzero(PRECISION_THRESHOLDS == PRECISION_AT)[0])
+        per_seed_auc = [np.mean([e.success_auc for e in run.values()]) for run in self.runs]
         return {
             "tracker": self.name,
             "folder": str(self.folder),
-            "sequences": len(evaluations),
+            "seeds": len(self.runs),
+            "sequences": len(self.evaluations),
             "sequences_with_results": sum(p is not None for p in self.files.values()),
             "frames": int(sum(e.n_frames for e in evaluations)),
             "missing_frames": int(sum(e.n_missing for e in evaluations)),
             "success_auc": float(np.mean(self.success)),
+            "success_auc_std_over_seeds": float(np.std(per_seed_auc)) if len(self.runs) > 1 else None,
             "precision_20": float(self.precision[precision_index]),
             "mean_overlap": float(np.mean([e.mean_overlap for e in evaluations])),
             "mean_center_error": float(np.mean(cle)) if cle else None,
@@ -131,7 +153,8 @@ class Comparison:
             "missing_predictions": MISSING_RULE,
             "trackers": [
                 {**t.summary(),
-                 "per_sequence": {name: {**e.as_dict(), "file": None if t.files[name] is None else str(t.files[name])}
+                 "per_sequence": {name: {**e.as_dict(), "file": None if t.files[name] is None else str(t.files[name]),
+                                         "success_auc_mean_over_seeds": t.sequence_auc(name)}
                                   for name, e in t.evaluations.items()},
                  "success_curve": t.success.tolist(), "precision_curve": t.precision.tolist(),
                  "notes": list(t.notes)}
@@ -212,7 +235,7 @@ def find_result(folder, sequence, name_map=None, max_frames: int | None = None):
 
 
 def compare(result_folders, data_root, names=None, sequences=None, name_map=None, max_frames=None,
-            common_only: bool = False, skip_first: bool = True) -> Comparison:
+            common_only: bool = False, skip_first: bool = True, all_seeds: bool = False) -> Comparison:
     """Score each result folder on the sequences of ``data_root``.
 
     Parameters
@@ -232,12 +255,14 @@ def compare(result_folders, data_root, names=None, sequences=None, name_map=None
         Score only the sequences every tracker has a file for.
     skip_first : bool
         Do not score frame 1 (the given box), the OTB convention.
+    all_seeds : bool
+        Also score the other seeds of a ``nrmlc benchmark`` folder
+        (``<folder>/seeds/<seed>/``) and average over seeds.
 
     Returns
     -------
     Comparison
     """
-    from nrmlc.benchmark import select_sequences
     from nrmlc.metrics import evaluate
 
     folders = [Path(f) for f in result_folders]
@@ -297,7 +322,44 @@ def compare(result_folders, data_root, names=None, sequences=None, name_map=None
         missing = [s.name for s, _ in chosen if tracker.files[s.name] is None]
         if missing:
             tracker.notes.append(f"no result file for {', '.join(missing)}: every frame counts as missing")
+        others = seed_folders(tracker.folder)
+        if others and not all_seeds:
+            tracker.notes.append(f"{len(others)} more seed(s) in {tracker.folder / SEEDS_FOLDER} not scored "
+                                 f"(--all-seeds averages them)")
+        if others and all_seeds:
+            tracker.seed_runs = [tracker.evaluations]
+            tracker.seed_labels = [_primary_seed(tracker.folder)] + [p.name for p in others]
+            for seed_folder in others:
+                run = {}
+                for sequence, truth in chosen:
+                    path, boxes, why = find_result(seed_folder, sequence, name_map, max_frames)
+                    tracker.notes += why
+                    if path is None:
+                        tracker.notes.append(f"{seed_folder}: no result file for {sequence.name}: "
+                                             f"every frame counts as missing")
+                    run[sequence.name] = evaluate(np.empty((0, 4)) if boxes is None else boxes, truth,
+                                                  skip_first=skip_first)
+                tracker.seed_runs.append(run)
     return Comparison([s.name for s, _ in chosen], trackers, notes)
+
+
+def _primary_seed(folder) -> str:
+    """The seed of a ``nrmlc benchmark`` folder's top-level files ("" if it does not say)."""
+    from nrmlc.benchmark import MANIFEST_NAME
+
+    try:
+        return str(json.loads((Path(folder) / MANIFEST_NAME).read_text())["primary_seed"])
+    except (OSError, ValueError, KeyError, TypeError):
+        return ""
+
+
+def seed_folders(folder) -> list[Path]:
+    """The other seeds' folders of a ``nrmlc benchmark`` folder, ``<folder>/seeds/<seed>``, by seed."""
+    root = Path(folder) / SEEDS_FOLDER
+    if not root.is_dir():
+        return []
+    found = [p for p in root.iterdir() if p.is_dir() and p.name.isdigit()]
+    return sorted(found, key=lambda p: int(p.name))
 
 
 def format_table(comparison: Comparison, per_sequence: bool = True) -> str:
@@ -306,24 +368,35 @@ def format_table(comparison: Comparison, per_sequence: bool = True) -> str:
     names = [t.name for t in comparison.trackers]
     width = max(8, *(len(n) for n in names))
     if per_sequence:
-        lines.append("success AUC per sequence ('-': no result file, scored as all frames missing)")
+        lines.append("success AUC per sequence ('-': no result file, scored as all frames missing)"
+                     + (" (mean over seeds)" if any(len(t.runs) > 1 for t in comparison.trackers) else ""))
         lines.append(f"{'sequence':16s} " + " ".join(f"{n:>{width}s}" for n in names))
         for sequence in comparison.sequences:
             cells = []
             for tracker in comparison.trackers:
-                value = tracker.evaluations[sequence].success_auc
+                value = tracker.sequence_auc(sequence)
                 cells.append(f"{'-' if tracker.files[sequence] is None else format(value, '.3f'):>{width}s}")
             lines.append(f"{sequence:16s} " + " ".join(cells))
         lines.append("")
-    lines.append(f"{'tracker':{width}s} {'seqs':>7s} {'AUC':>6s} {'P@20':>6s} {'overlap':>8s} {'CLE px':>8s} "
-                 f"{'missing frames':>15s}")
+    several = any(len(t.runs) > 1 for t in comparison.trackers)
+    seeds_header = f" {'seeds':>5s} {'AUC sd':>6s}" if several else ""
+    lines.append(f"{'tracker':{width}s} {'seqs':>7s}{seeds_header} {'AUC':>6s} {'P@20':>6s} {'overlap':>8s} "
+                 f"{'CLE px':>8s} {'missing frames':>15s}")
     for tracker in sorted(comparison.trackers, key=lambda t: -t.summary()["success_auc"]):
         s = tracker.summary()
         cle = "-" if s["mean_center_error"] is None else f"{s['mean_center_error']:.1f}"
-        lines.append(f"{s['tracker']:{width}s} {s['sequences_with_results']:>3d}/{s['sequences']:<3d} "
+        spread = s["success_auc_std_over_seeds"]
+        seeds = f" {s['seeds']:>5d} {'-' if spread is None else format(spread, '.3f'):>6s}" if several else ""
+        lines.append(f"{s['tracker']:{width}s} {s['sequences_with_results']:>3d}/{s['sequences']:<3d}{seeds} "
                      f"{s['success_auc']:6.3f} {s['precision_20']:6.3f} {s['mean_overlap']:8.3f} {cle:>8s} "
                      f"{s['missing_frames']:>7d}/{s['frames']:<7d}")
+    if several:
+        lines.append("(scores are means over seeds and sequences; 'AUC sd': standard deviation over seeds)")
     return "\n".join(lines)
+
+
+def _legend_name(tracker: TrackerScores) -> str:
+    return tracker.name if len(tracker.runs) == 1 else f"{tracker.name} ({len(tracker.runs)} seeds)"
 
 
 def plot_comparison(comparison: Comparison, path, title: str = "") -> Path:
@@ -346,10 +419,10 @@ def plot_comparison(comparison: Comparison, path, title: str = "") -> Path:
     colours = {t.name: f"C{i % 10}" for i, t in enumerate(comparison.trackers)}
     for i, tracker in enumerate(by_auc):
         left.plot(SUCCESS_THRESHOLDS, tracker.success, styles[(i // 10) % 4], color=colours[tracker.name], lw=1.8,
-                  label=f"{tracker.name} [{summaries[tracker.name]['success_auc']:.3f}]")
+                  label=f"{_legend_name(tracker)} [{summaries[tracker.name]['success_auc']:.3f}]")
     for i, tracker in enumerate(by_precision):
         right.plot(PRECISION_THRESHOLDS, tracker.precision, styles[(i // 10) % 4], color=colours[tracker.name],
-                   lw=1.8, label=f"{tracker.name} [{summaries[tracker.name]['precision_20']:.3f}]")
+                   lw=1.8, label=f"{_legend_name(tracker)} [{summaries[tracker.name]['precision_20']:.3f}]")
     n = len(comparison.sequences)
     left.set(xlabel="Overlap threshold", ylabel="Success rate", xlim=(0, 1), ylim=(0, 1.02),
              title=f"Success plots of OPE ({n} sequence{'s' if n != 1 else ''})")
@@ -370,19 +443,23 @@ def plot_comparison(comparison: Comparison, path, title: str = "") -> Path:
 
 
 def write_csv(comparison: Comparison, path) -> Path:
-    """One row per (tracker, sequence) plus one ``ALL`` row per tracker, atomically."""
+    """One row per (tracker, seed, sequence) plus one ``ALL`` row per tracker (means over seeds and
+    sequences), atomically."""
     buffer = text_io.StringIO()
-    columns = ["tracker", "sequence", "file", "frames", "missing_frames", *SCORE_NAMES]
+    columns = ["tracker", "seed", "sequence", "file", "frames", "missing_frames", *SCORE_NAMES]
     writer = csv.DictWriter(buffer, fieldnames=columns, lineterminator="\n")
     writer.writeheader()
     for tracker in comparison.trackers:
-        for name, evaluation in tracker.evaluations.items():
-            d = evaluation.as_dict()
-            writer.writerow({"tracker": tracker.name, "sequence": name, "file": tracker.files[name] or "",
-                             "frames": d["n_frames"], "missing_frames": d["n_missing"],
-                             **{k: "" if d[k] is None else d[k] for k in SCORE_NAMES}})
+        labels = tracker.seed_labels or [_primary_seed(tracker.folder)]
+        for label, run in zip(labels, tracker.runs):
+            for name, evaluation in run.items():
+                d = evaluation.as_dict()
+                file = tracker.files[name] if run is tracker.evaluations else None
+                writer.writerow({"tracker": tracker.name, "seed": label, "sequence": name, "file": file or "",
+                                 "frames": d["n_frames"], "missing_frames": d["n_missing"],
+                                 **{k: "" if d[k] is None else d[k] for k in SCORE_NAMES}})
         s = tracker.summary()
-        writer.writerow({"tracker": tracker.name, "sequence": "ALL", "file": "", "frames": s["frames"],
+        writer.writerow({"tracker": tracker.name, "seed": "", "sequence": "ALL", "file": "", "frames": s["frames"],
                          "missing_frames": s["missing_frames"],
                          **{k: "" if s[k] is None else s[k] for k in SCORE_NAMES}})
     return io.write_text(path, buffer.getvalue())
@@ -408,6 +485,9 @@ def add_evaluate_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--name-map", action="append", default=[], metavar="FILE_STEM=SEQUENCE",
                         help="a result file named FILE_STEM.txt holds SEQUENCE, e.g. FaceOcc1=Occlusion1 "
                              "(repeatable, or comma-separated)")
+    parser.add_argument("--all-seeds", action="store_true",
+                        help="also score every other seed of a 'nrmlc benchmark' folder (DIR/seeds/<seed>/) and "
+                             "average over seeds")
     parser.add_argument("--common", action="store_true",
                         help="score only the sequences every tracker has a result file for")
     parser.add_argument("--max-frames", type=int, metavar="N",
@@ -418,20 +498,16 @@ def add_evaluate_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run_evaluate_folders(args: argparse.Namespace) -> int:
     """``evaluate --results DIR [DIR ...] --data DATA ...``: table on stdout, notes on stderr."""
-    from nrmlc.benchmark import parse_names
-
     if args.groundtruth:
         raise ParameterError("--groundtruth is for one result file; with --data give result folders")
     names = None if args.names is None else [n.strip() for n in args.names.split(",")]
     comparison = compare(args.results, args.data, names=names,
                          sequences=parse_names(args.sequences), name_map=parse_name_map(args.name_map),
                          max_frames=args.max_frames, common_only=args.common,
-                         skip_first=not args.include_first)
+                         skip_first=not args.include_first, all_seeds=args.all_seeds)
     for note in comparison.notes + [f"{t.name}: {n}" for t in comparison.trackers for n in t.notes]:
         print(f"note: {note}", file=sys.stderr)
     if args.json:
-        import json
-
         print(json.dumps(comparison.as_dict(), indent=2))
     else:
         print(format_table(comparison))

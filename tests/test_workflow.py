@@ -307,12 +307,41 @@ def test_evaluate_compares_folders_with_plots(data_root, two_trackers, tmp_path,
     assert other_scores["missing_frames"] == 3 + 9  # three rows short on one sequence, no file for the other
     assert f"{nrmlc_scores['success_auc']:.3f}" in nrmlc_row
     csv_rows = table_csv.read_text().splitlines()
-    assert csv_rows[0].startswith("tracker,sequence") and len(csv_rows) == 1 + 2 * 3
+    assert csv_rows[0].startswith("tracker,seed,sequence") and len(csv_rows) == 1 + 2 * 3
 
     # --common scores only the sequences both have; --names renames.
     code, out, _ = run_main(["evaluate", "--results", nrmlc_folder, other, "--data", data_root, "--common",
                              "--names", "Ours,Theirs"], capsys)
     assert code == 0 and "Ours" in out and "Theirs" in out and "1/1" in out
+
+
+def test_evaluate_all_seeds_averages_a_benchmark_folder(data_root, tmp_path, capsys):
+    out = tmp_path / "NRMLC"
+    code, _, err = _benchmark(data_root, out, tmp_path / "cache", capsys, "--seeds", "4,2,7", "--preset", "paper")
+    assert code == 0, err
+    assert json.loads((out / "benchmark.json").read_text())["settings"]["params"]["template_sampling"] == "annulus"
+    names = sorted(p.name for p in data_root.iterdir())
+    per_seed = []
+    for folder in (out, out / "seeds" / "2", out / "seeds" / "7"):  # seed 4 (the first given) is the top level
+        per_seed.append(np.mean([evaluate(read_box_file(folder / f"{n}.txt"),
+                                          open_sequence(data_root / n).groundtruth).success_auc for n in names]))
+    assert len(set(per_seed)) > 1  # the seeds differ, so averaging them is not a no-op
+
+    one = compare([out], data_root).trackers[0]
+    assert one.summary()["seeds"] == 1 and one.summary()["success_auc"] == pytest.approx(per_seed[0])
+    assert any("2 more seed(s)" in note and "--all-seeds" in note for note in one.notes)
+
+    code, table, err = run_main(["evaluate", "--results", out, "--data", data_root, "--all-seeds",
+                                 "--csv", tmp_path / "c.csv"], capsys)
+    assert code == 0, err
+    every = compare([out], data_root, all_seeds=True).trackers[0]
+    summary = every.summary()
+    assert summary["seeds"] == 3 and every.seed_labels == ["4", "2", "7"]
+    assert summary["success_auc"] == pytest.approx(np.mean(per_seed))
+    assert summary["success_auc_std_over_seeds"] == pytest.approx(np.std(per_seed))
+    assert "AUC sd" in table and f"{np.mean(per_seed):.3f}" in table
+    rows = (tmp_path / "c.csv").read_text().splitlines()
+    assert len(rows) == 1 + 3 * len(names) + 1 and any(r.startswith("NRMLC,7,") for r in rows)
 
 
 def test_evaluate_finds_subfolders_and_refuses_other_versions(data_root, two_trackers, tmp_path, capsys):
