@@ -146,10 +146,12 @@ class Comparison:
     sequences: list
     trackers: list  # of TrackerScores
     notes: list = field(default_factory=list)
+    max_frames: int | None = None  # scored only the first frames of each sequence
 
     def as_dict(self) -> dict:
         return {
             "sequences": list(self.sequences),
+            "max_frames": self.max_frames,
             "missing_predictions": MISSING_RULE,
             "trackers": [
                 {**t.summary(),
@@ -340,7 +342,7 @@ def compare(result_folders, data_root, names=None, sequences=None, name_map=None
                     run[sequence.name] = evaluate(np.empty((0, 4)) if boxes is None else boxes, truth,
                                                   skip_first=skip_first)
                 tracker.seed_runs.append(run)
-    return Comparison([s.name for s, _ in chosen], trackers, notes)
+    return Comparison([s.name for s, _ in chosen], trackers, notes, max_frames)
 
 
 def _primary_seed(folder) -> str:
@@ -424,10 +426,13 @@ def plot_comparison(comparison: Comparison, path, title: str = "") -> Path:
         right.plot(PRECISION_THRESHOLDS, tracker.precision, styles[(i // 10) % 4], color=colours[tracker.name],
                    lw=1.8, label=f"{_legend_name(tracker)} [{summaries[tracker.name]['precision_20']:.3f}]")
     n = len(comparison.sequences)
+    scope = f"{n} sequence{'s' if n != 1 else ''}"
+    if comparison.max_frames is not None:
+        scope += f", first {comparison.max_frames} frames"
     left.set(xlabel="Overlap threshold", ylabel="Success rate", xlim=(0, 1), ylim=(0, 1.02),
-             title=f"Success plots of OPE ({n} sequence{'s' if n != 1 else ''})")
+             title=f"Success plots of OPE ({scope})")
     right.set(xlabel="Location error threshold (px)", ylabel="Precision", xlim=(0, PRECISION_THRESHOLDS[-1]),
-              ylim=(0, 1.02), title=f"Precision plots of OPE ({n} sequence{'s' if n != 1 else ''})")
+              ylim=(0, 1.02), title=f"Precision plots of OPE ({scope})")
     right.axvline(PRECISION_AT, color="0.6", lw=0.8, ls=":")
     for axis, where in ((left, "lower left"), (right, "lower right")):
         axis.grid(True, alpha=0.4)
