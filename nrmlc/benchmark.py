@@ -35,6 +35,7 @@ import json
 import math
 import re
 import sys
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -207,7 +208,19 @@ def run_benchmark(data_root, out, params=None, seeds=(0,), sequences: list[str] 
     seeds = tuple(int(s) for s in seeds)
     out = Path(out)
     data_root = Path(data_root)
+    io.check_output(out / MANIFEST_NAME, "--out")
     chosen = select_sequences(data_root, sequences)
+    usable = []
+    for sequence in chosen:
+        try:
+            sequence.init_box
+        except DataError:  # e.g. a folder of frames without ground truth: nothing to start from
+            warnings.warn(f"{sequence.path or sequence.name}: skipped, no ground-truth box on frame 1 to start from")
+            continue
+        usable.append(sequence)
+    if not usable:
+        raise DataError(f"{data_root}: no sequence with a ground-truth box on frame 1 to start from")
+    chosen = usable
     settings = {"params": params.as_dict(), "max_frames": max_frames, "data": str(data_root.resolve())}
     manifest = _read_manifest(out, json.loads(json.dumps(settings, default=str)))
     if manifest["primary_seed"] is None:

@@ -397,6 +397,17 @@ def format_table(comparison: Comparison, per_sequence: bool = True) -> str:
     return "\n".join(lines)
 
 
+def check_plot_path(path) -> None:
+    """Refuse a plot file name whose ending matplotlib cannot write (before any work is done)."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    formats = FigureCanvasAgg(Figure()).get_supported_filetypes()
+    suffix = Path(path).suffix.lstrip(".").lower()
+    if suffix not in formats:
+        raise ParameterError(f"--plot {path}: cannot write a '{suffix}' file; use one of {', '.join(sorted(formats))}")
+
+
 def _legend_name(tracker: TrackerScores) -> str:
     return tracker.name if len(tracker.runs) == 1 else f"{tracker.name} ({len(tracker.runs)} seeds)"
 
@@ -442,7 +453,7 @@ def plot_comparison(comparison: Comparison, path, title: str = "") -> Path:
         figure.suptitle(title)
     figure.tight_layout()
     buffer = text_io.BytesIO()
-    figure.savefig(buffer, format=Path(path).suffix.lstrip(".").lower() or "png", dpi=130)
+    figure.savefig(buffer, format=Path(path).suffix.lstrip(".").lower(), dpi=130)
     plt.close(figure)
     return io.write_bytes(path, buffer.getvalue())
 
@@ -505,6 +516,11 @@ def run_evaluate_folders(args: argparse.Namespace) -> int:
     """``evaluate --results DIR [DIR ...] --data DATA ...``: table on stdout, notes on stderr."""
     if args.groundtruth:
         raise ParameterError("--groundtruth is for one result file; with --data give result folders")
+    for option, path in (("--plot", args.plot), ("--csv", args.csv)):
+        if path is not None:
+            io.check_output(path, option)
+    if args.plot is not None:
+        check_plot_path(args.plot)
     names = None if args.names is None else [n.strip() for n in args.names.split(",")]
     comparison = compare(args.results, args.data, names=names,
                          sequences=parse_names(args.sequences), name_map=parse_name_map(args.name_map),

@@ -385,3 +385,24 @@ def test_evaluate_bad_folder_is_one_error_line(data_root, tmp_path, capsys):
     assert code == 2 and "absent: result folder not found" in err
     with pytest.raises(DataError):
         compare([tmp_path], tmp_path / "no-data")
+
+
+def test_evaluate_refuses_an_unwritable_plot_before_scoring(data_root, two_trackers, tmp_path, capsys):
+    nrmlc_folder, _, _ = two_trackers
+    code, out, err = run_main(["evaluate", "--results", nrmlc_folder, "--data", data_root,
+                               "--plot", tmp_path / "plot.xyz"], capsys)
+    assert code == 2 and "--plot" in err and "'xyz'" in err and out == ""
+    assert not (tmp_path / "plot.xyz").exists()
+
+
+def test_benchmark_skips_a_folder_without_a_starting_box(data_root, tmp_path, capsys):
+    root = tmp_path / "data"
+    name = sorted(p.name for p in data_root.iterdir())[0]
+    shutil.copytree(data_root / name, root / name)
+    shutil.copytree(data_root / name / "img", root / "NoTruth" / "img")
+    code, _, err = _benchmark(root, tmp_path / "out", tmp_path / "cache", capsys, "--max-frames", "3")
+    assert code == 0, err
+    assert "NoTruth: skipped, no ground-truth box on frame 1" in err
+    assert sorted(p.name for p in (tmp_path / "out").glob("*.txt")) == [f"{name}.txt"]
+    code, _, err = _benchmark(root, tmp_path / "out2", tmp_path / "cache", capsys, "--sequences", "NoTruth")
+    assert code == 2 and "no sequence with a ground-truth box" in err
