@@ -253,6 +253,9 @@ def run_benchmark(data_root, out, params=None, seeds=(0,), sequences: list[str] 
             io.write_json(out / MANIFEST_NAME, manifest)
     summary = summarize(manifest)
     write_summary(out, summary)
+    log(f"results: {out}/<Seq>.txt" + (f", {out / SEEDS_FOLDER}/<seed>/<Seq>.txt" if len(set(seeds) | {primary}) > 1
+                                        or (out / SEEDS_FOLDER).is_dir() else "")
+        + f"; scores: {out / SUMMARY_CSV}, {out / SUMMARY_JSON}")
     return summary
 
 
