@@ -239,8 +239,8 @@ def run_benchmark(data_root, out, params=None, seeds=(0,), sequences: list[str] 
     if todo:
         cache = cache if cache is not None else RunCache()
         version = code_version()
-        results = cache.run(todo, executor=executor, jobs=jobs, progress=progress)
-        for spec, result in zip(todo, results):
+
+        def record(spec, result) -> None:
             name = spec.sequence.name
             io.write_boxes(result_file(out, name, spec.seed, primary), result.boxes)
             runs.setdefault(name, {})[str(spec.seed)] = {
@@ -251,6 +251,20 @@ def run_benchmark(data_root, out, params=None, seeds=(0,), sequences: list[str] 
             }
             # The file first, then its entry: an entry always has its file.
             io.write_json(out / MANIFEST_NAME, manifest)
+
+        try:
+            results = cache.run(todo, executor=executor, jobs=jobs, progress=progress)
+        except BaseException:
+            # A run failed or the user interrupted: record the runs that finished, then let it through.
+            for spec in todo:
+                try:
+                    if cache.has(spec):
+                        record(spec, cache.load(spec))
+                except Exception:  # the original error matters more than a damaged cache file
+                    pass
+            raise
+        for spec, result in zip(todo, results):
+            record(spec, result)
     summary = summarize(manifest)
     write_summary(out, summary)
     log(f"results: {out}/<Seq>.txt" + (f", {out / SEEDS_FOLDER}/<seed>/<Seq>.txt" if len(set(seeds) | {primary}) > 1

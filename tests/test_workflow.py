@@ -407,3 +407,24 @@ def test_benchmark_skips_a_folder_without_a_starting_box(data_root, tmp_path, ca
     with pytest.warns(UserWarning, match="NoTruth: skipped"):
         code, _, err = _benchmark(root, tmp_path / "out2", tmp_path / "cache", capsys, "--sequences", "NoTruth")
     assert code == 2 and "no sequence with a ground-truth box" in err
+
+
+def test_benchmark_keeps_finished_sequences_when_another_fails(data_root, tmp_path, capsys):
+    """A broken frame in one sequence: one error line; the sequence that finished has its file and entry."""
+    root = tmp_path / "data"
+    names = sorted(p.name for p in data_root.iterdir())
+    for name in names:
+        shutil.copytree(data_root / name, root / name)
+    # The broken sequence is the shorter one, so the longer (good) one runs first (longest first).
+    broken = root / names[1]
+    frames = sorted((broken / "img").iterdir())
+    for extra in frames[6:]:
+        extra.unlink()
+    (broken / "groundtruth_rect.txt").write_text(
+        "\n".join((broken / "groundtruth_rect.txt").read_text().splitlines()[:6]) + "\n")
+    frames[4].write_bytes(b"not an image")
+    out = tmp_path / "out"
+    code, _, err = _benchmark(root, out, tmp_path / "cache", capsys)
+    assert code == 2 and frames[4].name in err.splitlines()[-1]
+    assert (out / f"{names[0]}.txt").is_file() and not (out / f"{names[1]}.txt").exists()
+    assert list(json.loads((out / "benchmark.json").read_text())["runs"]) == [names[0]]
