@@ -128,7 +128,7 @@ def _substitute(chol, n, solution, refine, rhs_scale):
 
 
 @njit(**NUMBA_FLAGS)
-def _solve_sum_to_one(gram, members, n_members, ridge, shift, chol, solution):
+def _solve_sum_to_one(gram, members, n_members, ridge, shift, chol, solution, n_prefactored):
     """Minimise ``c' (G_W + ridge I) c`` subject to ``1'c = 1``.
 
     Computes ``x = (G_W + ridge I)^{-1} 1`` and returns ``c = x / 1'x``. The
@@ -156,6 +156,13 @@ def _solve_sum_to_one(gram, members, n_members, ridge, shift, chol, solution):
         Work buffer for the Cholesky factor ``L`` (lower triangle).
     solution : ndarray, shape (k_max,)
         Output: ``solution[:n_members]`` is ``c`` in the order of ``members``.
+    n_prefactored : int
+        Leading rows of ``chol`` that already hold the factor of this
+        ``G_W + shift I`` (same members in the same order, same shift); the
+        first factorisation starts after them. The rows of a Cholesky factor
+        depend only on the leading block, so the nested dictionaries of one
+        candidate share them: the result is bit for bit the same as from a
+        factorisation from row 0.
 
     Returns
     -------
@@ -164,6 +171,9 @@ def _solve_sum_to_one(gram, members, n_members, ridge, shift, chol, solution):
         made ``G_W + shift I`` numerically indefinite, in which case it was
         multiplied by 10 until the factorisation succeeded and the result is
         the (unrefined) solution for that larger shift.
+    n_factored : int
+        Leading rows of ``chol`` now holding the factor of ``G_W + shift I``
+        (``n_members`` after a first factorisation that succeeded, else 0).
     """
     n = n_members
     for r in range(n):
@@ -172,14 +182,14 @@ def _solve_sum_to_one(gram, members, n_members, ridge, shift, chol, solution):
                 # Garbage in, visible garbage out: no silent fallback on NaN/inf.
                 for s in range(n):
                     solution[s] = np.nan
-                return shift
+                return shift, 0
     current = shift
     for attempt in range(_MAX_RETRIES):
         # In exact arithmetic every pivot of G_W + s I is >= s (G_W is PSD);
         # a pivot below s/2 means rounding made G_W indefinite at this scale.
         threshold = 0.5 * current
         factorised = True
-        for r in range(n):
+        for r in range(n_prefactored if attempt == 0 else 0, n):
             row = members[r]
             for q in range(r + 1):
                 value = gram[row, members[q]]
@@ -210,12 +220,12 @@ def _solve_sum_to_one(gram, members, n_members, ridge, shift, chol, solution):
             if total > 0.0 and total < np.inf:
                 for r in range(n):
                     solution[r] = solution[r] / total
-                return current
+                return current, (n if attempt == 0 else 0)
         current *= 10.0
     # Unreachable for finite data of sane magnitude; keep the output feasible.
     for r in range(n):
         solution[r] = 1.0 / n
-    return current
+    return current, 0
 
 
 @njit(**NUMBA_FLAGS)
@@ -297,7 +307,7 @@ def _solve_simplex_qp(gram, k, ridge, shift, chol, members, is_free, trial, grad
                 if is_free[a] == 1:
                     members[n_free] = a
                     n_free += 1
-            _solve_sum_to_one(gram, members, n_free, objective_ridge, shift, chol, trial)
+            _solve_sum_to_one(gram, members, n_free, objective_ridge, shift, chol, trial, 0)
             phase_solves += 1
             if not np.isfinite(trial[0]):
                 for a in range(k):
@@ -362,14 +372,20 @@ def _solve_simplex_qp(gram, k, ridge, shift, chol, members, is_free, trial, grad
 
 
 @njit(**NUMBA_FLAGS)
-def _solve(gram, k, ridge, shift, constrained, chol, members, is_free, trial, grad, out):
-    """Dispatch to the closed form or the QP; writes the solution to ``out[:k]``."""
+def _solve(gram, k, ridge, shift, constrained, chol, members, is_free, trial, grad, out, n_prefactored):
+    """Dispatch to the closed form or the QP; writes the solution to ``out[:k]``.
+
+    ``n_prefactored`` (closed form only) leading rows of ``chol`` hold the factor
+    of ``G + shift I`` already (see :func:`_solve_sum_to_one`). Returns the
+    number of leading rows of ``chol`` that do after the call (0 for the QP).
+    """
     if constrained:
         _solve_simplex_qp(gram, k, ridge, shift, chol, members, is_free, trial, grad, out)
-    else:
-        for a in range(k):
-            members[a] = a
-        _solve_sum_to_one(gram, members, k, ridge, shift, chol, out)
+        return 0
+    for a in range(k):
+        members[a] = a
+    _, n_factored = _solve_sum_to_one(gram, members, k, ridge, shift, chol, out, n_prefactored)
+    return n_factored
 
 
 @njit(**PARALLEL_FLAGS)
@@ -395,6 +411,11 @@ def _encode_dictionaries(
                 value = (template_gram[ua, ub] - dots[i, ua]) - (dots[i, ub] - sq_norm)
                 gram[a, b] = value
                 gram[b, a] = value
+        # Rows of chol_work[i] holding the factor of G + factored_shift I: the
+        # dictionaries are nested, so with the paper's increasing sizes and one
+        # shift each factorisation continues the previous one.
+        n_factored = 0
+        factored_shift = -1.0
         for j in range(n_dictionaries):
             k = dictionary_sizes[j]
             largest = 0.0
@@ -403,9 +424,15 @@ def _encode_dictionaries(
                 if template_gram[ua, ua] > largest:
                     largest = template_gram[ua, ua]
             shift = _diagonal_shift(ridge, sq_norm + largest)
+            reusable = min(n_factored, k) if shift == factored_shift else 0
             out = real_work[i, 2]
-            _solve(gram, k, ridge, shift, constrained, chol_work[i], int_work[i, 0], int_work[i, 1],
-                   real_work[i, 0], real_work[i, 1], out)
+            n_now = _solve(gram, k, ridge, shift, constrained, chol_work[i], int_work[i, 0], int_work[i, 1],
+                           real_work[i, 0], real_work[i, 1], out, reusable)
+            if n_now > 0:
+                n_factored = max(n_now, reusable)
+                factored_shift = shift
+            else:
+                n_factored = 0
             for a in range(k):
                 coefficients[i, j, a] = out[a]
 
@@ -470,7 +497,7 @@ def _combine_dictionaries(
         if n_iterations >= 1:
             shift = _diagonal_shift(ridge, sq_norm + largest)
             _solve(gram, n_dictionaries, ridge, shift, constrained, chol_work[i], int_work[i, 0],
-                   int_work[i, 1], real_work[i, 0], real_work[i, 1], solved)
+                   int_work[i, 1], real_work[i, 0], real_work[i, 1], solved, 0)
             for j in range(n_dictionaries):
                 weights[i, j] = solved[j]
         else:

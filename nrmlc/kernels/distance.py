@@ -86,26 +86,32 @@ def _one_blas_thread():
 
 
 def _row_blocked_product(candidates: np.ndarray, templates: np.ndarray) -> np.ndarray:
-    """``candidates @ templates.T``, its row blocks multiplied in ``numba.get_num_threads()`` threads.
+    """``candidates @ templates.T`` in float64, its row blocks multiplied in ``numba.get_num_threads()`` threads.
 
     BLAS itself is held to one thread (:func:`_one_blas_thread`; why: the
     thread policy in :func:`nrmlc.config.set_threads`); numpy releases the GIL,
-    so the blocks run in parallel and idle workers sleep. Each row is computed
-    by the same single-threaded kernel whatever the split, so the result does
-    not depend on the thread count (a test checks it bit for bit).
+    so the blocks run in parallel and idle workers sleep. Each thread also casts
+    its block of a float32 product to float64 (exact), so no serial pass over
+    the product remains. Each row is computed by the same single-threaded kernel
+    whatever the split, so the result does not depend on the thread count (a
+    test checks it bit for bit).
     """
     n_rows = candidates.shape[0]
-    n_threads = min(numba.get_num_threads(), n_rows // _MIN_ROWS_PER_THREAD)
-    if n_threads < 2:
-        with _one_blas_thread():
-            return candidates @ templates.T
-    out = np.empty((n_rows, templates.shape[0]), dtype=np.result_type(candidates, templates))
+    n_threads = max(1, min(numba.get_num_threads(), n_rows // _MIN_ROWS_PER_THREAD))
+    out = np.empty((n_rows, templates.shape[0]), dtype=np.float64)
+    single = candidates.dtype == np.float32
+    products = np.empty(out.shape, dtype=np.float32) if single else out
     bounds = [n_rows * b // n_threads for b in range(n_threads + 1)]
 
     def block(start: int, stop: int) -> None:
-        np.matmul(candidates[start:stop], templates.T, out=out[start:stop])
+        np.matmul(candidates[start:stop], templates.T, out=products[start:stop])
+        if single:
+            out[start:stop] = products[start:stop]
 
     with _one_blas_thread():
+        if n_threads == 1:
+            block(0, n_rows)
+            return out
         pool = _thread_pool(n_threads - 1)
         futures = [pool.submit(block, start, stop) for start, stop in zip(bounds[1:-1], bounds[2:])]
         block(bounds[0], bounds[1])  # the calling thread takes the first block
@@ -142,10 +148,7 @@ def candidate_template_dots(candidates: np.ndarray, templates: np.ndarray) -> np
         raise ParameterError(
             f"templates have dim {templates.shape[1]}, candidates have dim {candidates.shape[1]}"
         )
-    products = _row_blocked_product(candidates, templates)
-    if products.dtype == np.float64:
-        return np.ascontiguousarray(products)
-    return products.astype(np.float64)
+    return _row_blocked_product(candidates, templates)
 
 
 @njit(**PARALLEL_FLAGS)
