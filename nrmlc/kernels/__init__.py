@@ -1,7 +1,7 @@
 """Compiled per-particle kernels of the NRMLC tracker.
 
 * :mod:`nrmlc.kernels.warp` -- bilinear affine warp of many particles into
-  unit-norm patch vectors.
+  unit-norm patch vectors; zero-mean (centred) patches.
 * :mod:`nrmlc.kernels.distance` -- candidate-template inner products, squared
   norms, template Gram, k-nearest templates.
 * :mod:`nrmlc.kernels.coding` -- approximated-LLC coefficients per local
@@ -18,10 +18,11 @@ from nrmlc.kernels.coding import (
     scatter_codes,
 )
 from nrmlc.kernels.distance import candidate_template_dots, nearest_templates, squared_norms, template_gram
-from nrmlc.kernels.warp import warp_patches
+from nrmlc.kernels.warp import centre_patches, warp_patches
 
 __all__ = [
     "warp_patches",
+    "centre_patches",
     "candidate_template_dots",
     "squared_norms",
     "template_gram",

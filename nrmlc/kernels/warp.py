@@ -157,3 +157,58 @@ def warp_patches(frame: np.ndarray, affines: np.ndarray, patch_size: int = PATCH
     row_values = np.empty((n_particles, patch_size), dtype=np.float64)
     _warp_patches(frame, affines, patch_size, True, column_index, column_fraction, row_values, patches)
     return patches
+
+
+@njit(**PARALLEL_FLAGS)
+def _centre_patches(patches, out):
+    """Fill ``out`` with each row of ``patches`` minus its mean, rescaled to unit norm."""
+    n_patches, dim = patches.shape
+    flat = np.float32(1.0 / math.sqrt(dim))
+    for particle in prange(n_patches):
+        row = patches[particle]
+        centred = out[particle]
+        total = 0.0
+        for k in range(dim):
+            total += np.float64(row[k])
+        mean = np.float32(total / dim)
+        sum_sq = 0.0
+        for k in range(dim):
+            value = row[k] - mean
+            centred[k] = value
+            sum_sq += np.float64(value) * np.float64(value)
+        norm = math.sqrt(sum_sq)
+        if norm <= 1e-12:
+            for k in range(dim):
+                centred[k] = flat
+        else:
+            scale = np.float32(norm)
+            for k in range(dim):
+                centred[k] = centred[k] / scale
+
+
+def centre_patches(patches: np.ndarray) -> np.ndarray:
+    """Subtract each patch's mean and rescale it to unit l2 norm.
+
+    The compiled form of the tracker's ``centre_patches`` (zero-mean patches):
+    the mean and the norm are accumulated in float64, the patch is centred and
+    divided in float32, and a flat patch (norm <= 1e-12 after centring)
+    becomes the flat unit vector ``1/sqrt(dim)``, as in :func:`warp_patches`.
+    Each row is computed by one thread, so the result does not depend on the
+    thread count; it matches the numpy version
+    (:func:`nrmlc.testing.reference.centre_patches_reference`) to float32
+    rounding, not bit for bit (the sums run in another order).
+
+    Parameters
+    ----------
+    patches : (n_patches, dim) float32, C-contiguous
+
+    Returns
+    -------
+    centred : (n_patches, dim) float32, C-contiguous
+    """
+    check_array("patches", patches, np.float32, 2)
+    if patches.shape[1] < 1:
+        raise ParameterError(f"patches must have at least one column, got shape {patches.shape}")
+    out = np.empty_like(patches)
+    _centre_patches(patches, out)
+    return out
