@@ -241,6 +241,10 @@ class NRMLCTracker:
         self.templates = np.ascontiguousarray(np.vstack([positives, negatives]))
         self.template_gram = template_gram(self.templates)
         self.template_sq_norms = np.ascontiguousarray(np.diag(self.template_gram))
+        if self.params.dictionaries == "per_class":
+            n_pos = len(positives)
+            self.positive_gram = np.ascontiguousarray(self.template_gram[:n_pos, :n_pos])
+            self.negative_gram = np.ascontiguousarray(self.template_gram[n_pos:, n_pos:])
 
     def _sample_positives(self, frame: np.ndarray, state: np.ndarray) -> np.ndarray:
         p = self.params
@@ -345,23 +349,37 @@ class NRMLCTracker:
         ``error_positive (n,)``, ``error_negative (n,)``, ``log_confidence (n,)``.
         """
         p = self.params
-        ridge_c, ridge_w = p.ridges
-        constrained = p.coding == "constrained"
-        sizes = np.asarray(p.dictionary_sizes, dtype=np.int64)
         dots = candidate_template_dots(candidates, self.templates)
-
         sq_norms = squared_norms(candidates)  # einsum with dtype= took 0.9 ms here, this 0.1 ms
-        neighbours, _ = nearest_templates(dots, sq_norms, self.template_sq_norms, p.k_max)
-        coefficients = encode_dictionaries(self.template_gram, dots, sq_norms, neighbours, sizes, ridge_c, constrained)
-        weights, codes, error_positive, error_negative = combine_dictionaries(
-            self.template_gram, dots, sq_norms, neighbours, coefficients, sizes,
-            len(self.positive_templates), ridge_w, constrained, p.n_iterations)
+        n_pos = len(self.positive_templates)
+        neighbours, coefficients, weights, codes, error_positive, error_negative = self._code(
+            dots, sq_norms, self.template_gram, self.template_sq_norms, n_pos)
+        if p.dictionaries == "per_class":
+            # Each class's error from its own local dictionaries: eps_pos never rests on
+            # a dictionary that holds no positive template (eps_pos = |y|^2 = 1).
+            error_positive = self._code(np.ascontiguousarray(dots[:, :n_pos]), sq_norms,
+                                        self.positive_gram, self.template_sq_norms[:n_pos], n_pos)[4]
+            error_negative = self._code(np.ascontiguousarray(dots[:, n_pos:]), sq_norms,
+                                        self.negative_gram, self.template_sq_norms[n_pos:], 0)[5]
         sign = -1.0 if p.confidence == "corrected" else 1.0
         # log h: the ranking and the condensation weights are taken from it, never from h,
         # so no alpha can overflow into a tie.
         log_confidence = sign * p.alpha * (error_positive - error_negative)
         return dict(dots=dots, neighbours=neighbours, coefficients=coefficients, weights=weights, codes=codes,
                     error_positive=error_positive, error_negative=error_negative, log_confidence=log_confidence)
+
+    def _code(self, dots, sq_norms, gram, template_sq_norms, n_positive) -> tuple:
+        """Algorithm 1 on the k_max nearest of the given templates: (neighbours, coefficients,
+        weights, codes, error_positive, error_negative), as in :meth:`encode`."""
+        p = self.params
+        ridge_c, ridge_w = p.ridges
+        constrained = p.coding == "constrained"
+        sizes = np.asarray(p.dictionary_sizes, dtype=np.int64)
+        neighbours, _ = nearest_templates(dots, sq_norms, template_sq_norms, p.k_max)
+        coefficients = encode_dictionaries(gram, dots, sq_norms, neighbours, sizes, ridge_c, constrained)
+        weights, codes, error_positive, error_negative = combine_dictionaries(
+            gram, dots, sq_norms, neighbours, coefficients, sizes, n_positive, ridge_w, constrained, p.n_iterations)
+        return neighbours, coefficients, weights, codes, error_positive, error_negative
 
     def step(self, frame: np.ndarray) -> FrameResult:
         """Estimate the target in ``frame`` (no template update)."""

@@ -14,6 +14,7 @@ TEMPLATE_SAMPLINGS = ("scm", "annulus")
 PROPAGATIONS = ("condensation", "best")
 TRANSLATION_NOISES = ("pixels", "relative")
 PATCH_NORMALIZATIONS = ("unit", "centred")
+DICTIONARY_SCOPES = ("joint", "per_class")
 
 #: Largest local dictionary the compiled solvers accept.
 MAX_DICTIONARY_SIZE = 16
@@ -106,6 +107,13 @@ class TrackerParams:
         'unit': patches are scaled to unit l2 norm (the paper). 'centred': the
         patch mean is subtracted first (L1APG whitens its patches), which removes a
         uniform brightness change.
+    dictionaries : {'joint', 'per_class'}
+        Where eps_pos and eps_neg come from. 'joint' (the paper): one coding on the
+        k nearest of all templates, eps_pos from its positive part, eps_neg from its
+        negative part. 'per_class' (ours): eps_pos from the coding on the k nearest
+        positive templates, eps_neg from that on the k nearest negatives, each with
+        the paper's multiple local dictionaries and solver; the joint coding still
+        gives the codes, LEN(neg*) and the occlusion test.
     """
 
     n_particles: int = 600
@@ -133,6 +141,7 @@ class TrackerParams:
     propagation: str = "condensation"
     translation_noise: str = "pixels"
     patch_normalization: str = "unit"
+    dictionaries: str = "joint"
 
     def __post_init__(self) -> None:
         def fail(name: str, message: str) -> None:
@@ -182,11 +191,13 @@ class TrackerParams:
                 fail("dictionary_sizes", f"k = {k} is larger than the template count {n_templates}")
         for name, choices in (("template_sampling", TEMPLATE_SAMPLINGS), ("propagation", PROPAGATIONS),
                               ("translation_noise", TRANSLATION_NOISES),
-                              ("patch_normalization", PATCH_NORMALIZATIONS)):
+                              ("patch_normalization", PATCH_NORMALIZATIONS), ("dictionaries", DICTIONARY_SCOPES)):
             if getattr(self, name) not in choices:
                 fail(name, f"unknown value {getattr(self, name)!r}; choose one of {', '.join(choices)}")
         if not 0 <= self.positive_sigma <= MAX_RADIUS:
             fail("positive_sigma", f"must be in [0, {MAX_RADIUS:g}], got {self.positive_sigma}")
+        if self.dictionaries == "per_class" and self.k_max > min(self.n_positive, self.n_negative):
+            fail("dictionaries", f"'per_class' needs n_positive and n_negative >= k = {self.k_max}")
         if self.coding not in CODING_MODES:
             fail("coding", f"unknown mode {self.coding!r}; choose one of {', '.join(CODING_MODES)}")
         if self.confidence not in CONFIDENCE_FORMS:
@@ -247,7 +258,7 @@ class TrackerParams:
 PRESETS: dict[str, dict] = {
     "default": {},
     "paper": dict(template_sampling="annulus", propagation="condensation", translation_noise="pixels",
-                  patch_normalization="unit"),
+                  patch_normalization="unit", dictionaries="joint"),
 }
 
 
