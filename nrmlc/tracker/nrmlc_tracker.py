@@ -31,7 +31,7 @@ from nrmlc.errors import ParameterError
 from nrmlc.geometry import box_to_state, clamp_states, state_to_affine, state_to_box, usable_boxes
 from nrmlc.kernels.coding import combine_dictionaries, encode_dictionaries
 from nrmlc.kernels.distance import candidate_template_dots, nearest_templates, squared_norms, template_gram
-from nrmlc.kernels.warp import warp_patches
+from nrmlc.kernels.warp import centre_patches, warp_patches
 from nrmlc.tracker.params import TrackerParams
 from nrmlc.tracker.templates import (SCM_PUSH_INIT, SCM_PUSH_UPDATE, negative_states, positive_states,
                                      scm_negative_states, scm_positive_states)
@@ -171,27 +171,6 @@ class FrameResult:
 def _exp_or_inf(value: float) -> float:
     """exp(value) for reporting h, inf instead of an overflow warning."""
     return float("inf") if value > 709.0 else float(np.exp(value))
-
-
-def centre_patches(patches: np.ndarray) -> np.ndarray:
-    """Subtract each patch's mean and rescale it to unit l2 norm (a flat patch becomes
-    the flat unit vector, as in :mod:`nrmlc.kernels.warp`).
-
-    Parameters
-    ----------
-    patches : (n, dim) float32
-
-    Returns
-    -------
-    patches : (n, dim) float32, C-contiguous
-    """
-    centred = patches - patches.mean(axis=1, keepdims=True, dtype=np.float64).astype(np.float32)
-    norms = np.sqrt(np.einsum("ij,ij->i", centred, centred, dtype=np.float64))
-    flat = norms <= 1e-12
-    centred[flat] = np.float32(1.0 / np.sqrt(patches.shape[1]))
-    norms[flat] = 1.0
-    centred /= norms[:, None].astype(np.float32)
-    return np.ascontiguousarray(centred)
 
 
 class NRMLCTracker:
