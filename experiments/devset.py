@@ -126,6 +126,7 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--baseline-preset", default="default", help="preset of the baseline")
     parser.add_argument("--baseline-param", action="append", default=[], metavar="NAME=VALUE",
                         help="change a parameter of the baseline (repeatable)")
+    parser.add_argument("--no-baseline", action="store_true", help="skip the baseline column")
     parser.add_argument("--sequences", default=None,
                         help="comma-separated subset of the development sequences")
     parser.add_argument("--synthetic", type=int, default=0, metavar="N",
@@ -159,7 +160,7 @@ def main(argv=None) -> int:
     order = [s.name for s in sequences]
     config_runs = mean_overlaps(cache, config, sequences, seeds, args.max_frames, args.jobs)
     columns = {"config": {n: float(np.mean(v)) for n, v in config_runs.items()}}
-    if baseline != config:
+    if baseline != config and not args.no_baseline:
         baseline_runs = mean_overlaps(cache, baseline, sequences, seeds, args.max_frames, args.jobs)
         columns["baseline"] = {n: float(np.mean(v)) for n, v in baseline_runs.items()}
     if not args.no_peers:
