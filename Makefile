@@ -6,7 +6,7 @@
 #       PEERS=dir (default <DATA>/../peer_results) DRY_RUN=1 (print the grid and stop)
 #   make test                    the test suite (what CI runs)
 #   make theorem                 numeric checks of Theorem 1 (seconds)
-#   make bench                   kernel and tracker timings -> figures/bench.json
+#   make bench [DATA=path]       kernel and tracker timings -> out/figures/bench.md (OUT=figures: committed)
 
 PYTHON_BOOT ?= python3
 VENV        ?= .venv
@@ -53,7 +53,7 @@ theorem: $(STAMP)
 	$(PY) -m experiments.theorem1_checks
 
 bench: $(STAMP)
-	$(PY) -m experiments.bench $(if $(DATA),--data "$(DATA)")
+	$(PY) -m experiments.bench $(if $(DATA),--data "$(DATA)") $(if $(OUT),--out "$(OUT)")
 
 clean-runs:
 	rm -rf .cache/runs

@@ -1,47 +1,34 @@
-"""Kernel and tracker timings: ``make bench`` = ``python -m experiments.bench [--data DIR]``.
+"""Timings: ``make bench`` = ``python -m experiments.bench [--data DIR] [--out DIR]``.
 
-Prints a markdown report and saves it as ``figures/bench.md``, with every
-number in ``figures/bench.json``:
+Writes ``bench.md`` (printed too) and ``bench.json`` (every number) to
+``out/figures/`` (git-ignored) unless ``--out`` says otherwise: ``--out figures``
+(``make bench OUT=figures``) replaces the committed report. Sections:
 
-* per kernel -- warp, distances + k nearest, coding (regularized, constrained,
-  plain), weights and confidence (``combine_dictionaries``) -- and per whole
-  tracker frame (``NRMLCTracker.step``), at N = 100, 300, 600, 1200 particles,
-  each with its ratio to a plain numpy reference of the same computation
-  measured in the same run;
-* end to end: tracker fps on the synthetic default sequence (and on
-  ``<data>/Car4`` when ``--data`` is given), frame decoding excluded and
-  included, and OpenCV's TrackerMIL on the same frames;
-* thread set-ups: the tracker's fps and CPU time per frame with numba and
-  BLAS at 1 or all threads, OpenMP spin-waiting or not, each in a fresh
-  subprocess (the evidence for the thread policy);
-* start-up: numba compile time cold (empty cache) and warm (on-disk cache),
-  each in a fresh subprocess;
-* the machine: CPU, threads, library versions, load average.
+* **Stages of a frame** at 100, 600 and 1200 particles (Car4 when ``--data`` is
+  given, else the synthetic sequence): the time each stage takes inside real
+  ``update`` calls (warp, product, norms, nearest templates, coding, weights and
+  confidence, template updates, and the Python and numpy between them) against
+  its *floor*, the same call on the same inputs timed alone (median after a
+  warm-up). A stage well above its floor loses time to its neighbours (caches,
+  waking threads); the row "between the kernels" has no floor.
+* **Kernels against their numpy references** (``nrmlc.testing.reference``, the
+  test oracles; for distances also a numpy version with the same sgemm, the fair
+  comparison for the selection part). Per-candidate references cost the same for
+  every candidate, so they are timed on a subset and scaled (column "reference on").
+* **End to end**: the tracker (every coding mode) and OpenCV's TrackerMIL on the
+  same frames, decoding excluded, in this process, in alternating rounds so
+  that a change of machine load hits both alike; ratios in words.
+* **Thread set-ups**, each in a fresh process: the API as a user runs it (nothing
+  called), ``set_threads()`` before or after importing the tracker (the CLI's
+  order), one thread, and numba's pool spin-waiting
+  (libgomp's default, which ``nrmlc`` turns off; see
+  :func:`nrmlc.config.set_threads`).
+* **Start-up** (fresh processes: empty numba cache, then warm) and the machine.
 
-References (what "plain numpy" means, column ``reference`` of the table):
-
-* warp: ``nrmlc.testing.reference.warp_patches_reference``, the test oracle (a
-  loop over particles, each vectorised in float64 numpy);
-* distances + KNN: ``nrmlc.testing.reference.reference_dots`` (the oracle, float64
-  ``einsum``), the ``|y|^2 + |t|^2 - 2 y.t`` expansion and a stable argsort.
-  A second row, ``distances+knn (numpy BLAS)``, uses the same sgemm as the
-  kernel (``Y @ T.T``) with ``np.argpartition`` + sort: the fair comparison for
-  the selection part, since the product itself is BLAS either way;
-* coding / weights: ``nrmlc.testing.reference.reference_encode`` and
-  ``reference_combine``, the oracles (a loop over candidates solving each small
-  problem with ``np.linalg``; SLSQP for the constrained QP). They cost the same
-  for every candidate, so they are timed on a subset of candidates and scaled
-  linearly to N (the column ``reference on`` says how many);
-* tracker frame: no separate reference; its ``reference`` is the sum of the
-  kernel references at that N (an estimate, marked as such).
-
-Threads: the bench applies :func:`nrmlc.config.set_threads` (default: all
-cores); ``--blas-threads`` overrides the BLAS count it sets, to compare
-policies. See the README's Performance section.
-
-Timings are medians over repeats after a warm-up call. The machine may be
-shared: the load average before and after the run is recorded, and wall and
-process-CPU medians are both kept in the JSON.
+The bench times exactly the configuration the API and the CLI use: it calls
+nothing that changes threads unless ``--threads`` is given. The machine may be
+shared: the load average and idle share are recorded; compare ratios measured
+in one run, not numbers across runs.
 """
 from __future__ import annotations
 
@@ -59,16 +46,22 @@ from pathlib import Path
 import numpy as np
 
 REPO_ROOT = Path(__file__).resolve().parent.parent
+#: Default output folder (git-ignored); ``--out figures`` writes the committed report.
+DEFAULT_OUT = REPO_ROOT / "out" / "figures"
 
-#: Particle counts of the cost-vs-N table.
-PARTICLE_COUNTS = (100, 300, 600, 1200)
+#: Particle counts of the stage and kernel tables.
+PARTICLE_COUNTS = (100, 600, 1200)
 #: Candidates the per-candidate references are timed on (then scaled to N).
 REFERENCE_SUBSET = {"regularized": 120, "plain": 60, "constrained": 12}
 MODES = ("regularized", "constrained", "plain")
+#: Frames of Car4 for the end-to-end and thread rows; the fps target of issue 14.
+REAL_FRAMES = 300
+TARGET_FPS = 150.0
+TARGET_MIL_RATIO = 6.0
 
 
 # ---------------------------------------------------------------------------
-# timing
+# timing and words
 # ---------------------------------------------------------------------------
 
 def measure(function, repeats: int, warmup: int = 1) -> dict:
@@ -86,18 +79,37 @@ def measure(function, repeats: int, warmup: int = 1) -> dict:
             "cpu_ms": 1e3 * float(np.median(cpus)), "repeats": repeats}
 
 
-def _load_average() -> list | None:
+def compare(name: str, fps: float, other: str, other_fps: float) -> str:
+    """``"<name> is 1.31x slower than <other>"`` (or faster, or as fast as), from two rates."""
+    ratio = fps / other_fps
+    if abs(ratio - 1.0) < 0.005:
+        return f"{name} is as fast as {other} (within 0.5%)"
+    if ratio > 1.0:
+        return f"{name} is {ratio:.2f}x faster than {other}"
+    return f"{name} is {1.0 / ratio:.2f}x slower than {other}"
+
+
+def _load() -> dict:
+    """Load averages and the share of CPU time idle over the last 0.5 s (all cores)."""
+    def ticks():
+        fields = [float(v) for v in Path("/proc/stat").read_text().split("\n", 1)[0].split()[1:]]
+        return fields[3] + fields[4], sum(fields)
+
     try:
-        return [round(v, 2) for v in os.getloadavg()]
-    except OSError:  # pragma: no cover - not on Linux
-        return None
+        idle_0, total_0 = ticks()
+        time.sleep(0.5)
+        idle_1, total_1 = ticks()
+        idle = (idle_1 - idle_0) / max(total_1 - total_0, 1.0)
+        return {"load_average": [round(v, 2) for v in os.getloadavg()], "idle_share": round(idle, 3)}
+    except OSError:  # pragma: no cover - not Linux
+        return {"load_average": None, "idle_share": None}
 
 
 # ---------------------------------------------------------------------------
 # machine
 # ---------------------------------------------------------------------------
 
-def machine_info(n_threads: int) -> dict:
+def machine_info() -> dict:
     import cv2
     import llvmlite
     import numba
@@ -119,8 +131,9 @@ def machine_info(n_threads: int) -> dict:
     except ValueError:  # no parallel kernel has run yet
         layer = None
     return {
-        "cpu": cpu, "logical_cores": os.cpu_count(), "threads": n_threads,
+        "cpu": cpu, "logical_cores": os.cpu_count(),
         "numba_threads": numba.get_num_threads(), "numba_threading_layer": layer,
+        "omp_wait_policy": os.environ.get("OMP_WAIT_POLICY"),
         "blas": blas, "opencv_threads": cv2.getNumThreads(),
         "python": platform.python_version(), "numpy": np.__version__, "numba": numba.__version__,
         "llvmlite": llvmlite.__version__, "scipy": scipy.__version__, "opencv": cv2.__version__,
@@ -129,7 +142,151 @@ def machine_info(n_threads: int) -> dict:
 
 
 # ---------------------------------------------------------------------------
-# kernels
+# stages of a frame
+# ---------------------------------------------------------------------------
+
+#: Function name (as the tracker modules call it) -> stage label. Calls made while the
+#: templates are updated count as the template update.
+STAGES = {
+    "warp_patches": "warp (particles)",
+    "centre_patches": "centring (particles)",
+    "candidate_template_dots": "product (sgemm)",
+    "squared_norms": "squared norms",
+    "nearest_templates": "nearest templates",
+    "encode_dictionaries": "coding",
+    "combine_dictionaries": "weights + confidence",
+    "template_gram": "template Gram",
+}
+TEMPLATE_STAGE = "template update (amortised)"
+OTHER_STAGE = "between the kernels (Python, numpy)"
+
+
+class StageTimer:
+    """Times the stages of a tracker while it runs, by wrapping the functions its modules call.
+
+    Every function named in :data:`STAGES` that an ``nrmlc.tracker`` module
+    holds is replaced by a wrapper that adds its wall time to its stage (or, during
+    the tracker's ``_update_templates``, to the template update's parts), and keeps
+    its last arguments so that its floor can be timed alone on the same inputs.
+    """
+
+    def __init__(self, tracker_class) -> None:
+        import types
+
+        self.seconds: dict[tuple, float] = {}
+        self.calls: dict[tuple, int] = {}
+        self.last_call: dict[tuple, tuple] = {}
+        self._updating = False
+        self._patched: list[tuple[object, str, object]] = []
+        for module_name, module in list(sys.modules.items()):
+            if not module_name.startswith("nrmlc.tracker") or module is None:
+                continue
+            for name, label in STAGES.items():
+                value = vars(module).get(name)
+                if isinstance(value, types.FunctionType):
+                    self._wrap(module, name, value, label)
+        if hasattr(tracker_class, "_update_templates"):
+            original = tracker_class._update_templates
+            timer = self
+
+            def update_templates(self_, *args, **kwargs):
+                timer._updating = True
+                start = time.perf_counter()
+                try:
+                    return original(self_, *args, **kwargs)
+                finally:
+                    timer._add((TEMPLATE_STAGE, False), time.perf_counter() - start)
+                    timer._updating = False
+
+            self._patched.append((tracker_class, "_update_templates", original))
+            tracker_class._update_templates = update_templates
+
+    def _add(self, key: tuple, seconds: float) -> None:
+        self.seconds[key] = self.seconds.get(key, 0.0) + seconds
+        self.calls[key] = self.calls.get(key, 0) + 1
+
+    def _wrap(self, module, name: str, function, label: str) -> None:
+        timer = self
+
+        def wrapper(*args, **kwargs):
+            key = (label, timer._updating)
+            start = time.perf_counter()
+            result = function(*args, **kwargs)
+            timer._add(key, time.perf_counter() - start)
+            timer.last_call[key] = (function, args, kwargs)
+            return result
+
+        self._patched.append((module, name, function))
+        setattr(module, name, wrapper)
+
+    def reset(self) -> None:
+        self.seconds.clear()
+        self.calls.clear()
+
+    def floor(self, key: tuple, repeats: int) -> float:
+        """Median ms of the stage's last call, repeated alone."""
+        function, args, kwargs = self.last_call[key]
+        return measure(lambda: function(*args, **kwargs), repeats)["ms"]
+
+    def restore(self) -> None:
+        for owner, name, original in reversed(self._patched):
+            setattr(owner, name, original)
+        self._patched.clear()
+
+
+def _frames(sequence, n_frames: int, color: bool = False) -> list:
+    read = sequence.color_frame if color else sequence.frame
+    return [read(i) for i in range(min(n_frames, len(sequence)))]
+
+
+def bench_stages(sequence, counts, warm_frames: int = 20, timed_frames: int = 60, floor_repeats: int = 15) -> list:
+    """Per-stage ms per frame inside real ``update`` calls, and each stage's floor (ms per frame)."""
+    from nrmlc.tracker.nrmlc_tracker import NRMLCTracker
+    from nrmlc.tracker.params import TrackerParams
+
+    frames = _frames(sequence, warm_frames + timed_frames + 1)
+    timed_frames = len(frames) - warm_frames - 1
+    rows = []
+    for n in counts:
+        timer = StageTimer(NRMLCTracker)
+        try:
+            tracker = NRMLCTracker(seed=0, params=TrackerParams(n_particles=n))
+            tracker.init(frames[0], sequence.init_box)
+            for frame in frames[1:warm_frames + 1]:
+                tracker.update(frame)
+            timer.reset()
+            start = time.perf_counter()
+            for frame in frames[warm_frames + 1:]:
+                tracker.update(frame)
+            frame_ms = 1e3 * (time.perf_counter() - start) / timed_frames
+            per_frame = {key: 1e3 * seconds / timed_frames for key, seconds in timer.seconds.items()}
+            calls = {key: count / timed_frames for key, count in timer.calls.items()}
+            floors = {key: timer.floor(key, floor_repeats) * calls[key] for key in calls if key in timer.last_call}
+        finally:
+            timer.restore()
+        top = [(label, False) for label in STAGES.values() if (label, False) in per_frame]
+        for key in top:
+            rows.append({"n_particles": n, "stage": key[0], "ms": per_frame[key], "calls_per_frame": calls[key],
+                         "floor_ms": floors[key]})
+        update_key = (TEMPLATE_STAGE, False)
+        if update_key in per_frame:
+            parts = [key for key in floors if key[1]]
+            rows.append({"n_particles": n, "stage": TEMPLATE_STAGE, "ms": per_frame[update_key],
+                         "calls_per_frame": calls[update_key], "floor_ms": sum(floors[key] for key in parts),
+                         "floor_of": [key[0] for key in parts]})
+            top.append(update_key)
+        kernel_floor = sum(row["floor_ms"] for row in rows if row["n_particles"] == n)
+        rows.append({"n_particles": n, "stage": OTHER_STAGE, "ms": frame_ms - sum(per_frame[key] for key in top),
+                     "calls_per_frame": None, "floor_ms": None})
+        rows.append({"n_particles": n, "stage": "whole frame", "ms": frame_ms, "calls_per_frame": 1.0,
+                     "floor_ms": kernel_floor, "fps": 1e3 / frame_ms})
+        print(f"  N={n:5d}: frame {frame_ms:6.2f} ms ({1e3 / frame_ms:6.1f} fps), sum of stage floors "
+              f"{kernel_floor:6.2f} ms", flush=True)
+    return rows
+
+
+# ---------------------------------------------------------------------------
+# kernels against their references
 # ---------------------------------------------------------------------------
 
 def _warmed_tracker(sequence, n_frames: int):
@@ -179,30 +336,27 @@ def bench_kernels(sequence, counts, repeats: int, reference_repeats: int, warm_f
     n_positive = len(base.positive_templates)
     rows = []
 
-    def add(kernel, n, timing, reference=None, reference_name="", subset=None):
-        row = {"kernel": kernel, "n_particles": n, "n_templates": len(templates), **timing}
-        if reference is not None:
-            scale = n / subset if subset else 1.0
-            row.update(reference=reference_name, reference_ms=reference["ms"] * scale,
-                       reference_on=subset or n, speedup=reference["ms"] * scale / timing["ms"])
+    def add(kernel, n, timing, reference, reference_name, subset=None):
+        scale = n / subset if subset else 1.0
+        row = {"kernel": kernel, "n_particles": n, "n_templates": len(templates), **timing,
+               "reference": reference_name, "reference_ms": reference["ms"] * scale, "reference_on": subset or n}
+        row["speedup"] = row["reference_ms"] / timing["ms"]
         rows.append(row)
-        print(f"  {kernel:28s} N={n:5d} {timing['ms']:9.3f} ms"
-              + (f"   reference {row['reference_ms']:10.1f} ms  x{row['speedup']:.0f}" if reference else ""),
-              flush=True)
+        print(f"  {kernel:28s} N={n:5d} {timing['ms']:9.3f} ms   reference {row['reference_ms']:10.1f} ms  "
+              f"({row['speedup']:.0f}x faster)", flush=True)
         return row
 
     for n in counts:
         tracker = copy.deepcopy(base)
         tracker.params = params.replace(n_particles=n)
+        tracker.particles = None  # draw around the estimate, as in the first frame
         states = tracker.sample_particles()
         affines = np.ascontiguousarray(state_to_affine(states))
         candidates = warp_patches(frame, affines)
-        frame_reference = 0.0
 
-        row = add("warp", n, measure(lambda: warp_patches(frame, affines), repeats),
-                  measure(lambda: warp_patches_reference(frame, affines), reference_repeats, 0),
-                  "nrmlc/testing/reference.py (oracle)")
-        frame_reference += row["reference_ms"]
+        add("warp", n, measure(lambda: warp_patches(frame, affines), repeats),
+            measure(lambda: warp_patches_reference(frame, affines), reference_repeats, 0),
+            "nrmlc/testing/reference.py (oracle)")
 
         def knn():
             dots = candidate_template_dots(candidates, templates)
@@ -214,9 +368,8 @@ def bench_kernels(sequence, counts, repeats: int, reference_repeats: int, warm_f
             return reference_nearest(sq[:, None] + t_norms[None, :] - 2.0 * dots, k_max)
 
         timing = measure(knn, repeats)
-        row = add("distances+knn", n, timing, measure(knn_reference, reference_repeats, 0),
-                  "nrmlc/testing/reference.py einsum + stable argsort (oracle)")
-        frame_reference += row["reference_ms"]
+        add("distances+knn", n, timing, measure(knn_reference, reference_repeats, 0),
+            "nrmlc/testing/reference.py einsum + stable argsort (oracle)")
         add("distances+knn (numpy BLAS)", n, timing,
             measure(lambda: _numpy_blas_knn(candidates, templates, t_norms, k_max), reference_repeats, 0),
             "numpy sgemm + argpartition")
@@ -233,35 +386,20 @@ def bench_kernels(sequence, counts, repeats: int, reference_repeats: int, warm_f
                 return encode_dictionaries(gram, dots, sq_norms, neighbours, sizes, ridge_c, constrained)
 
             coefficients = encode()
-            row = add(f"coding {mode}", n, measure(encode, repeats),
-                      measure(lambda: reference_encode(candidates[:subset], templates, neighbours[:subset], sizes,
-                                                       ridge_c, constrained), reference_repeats, 0),
-                      "nrmlc/testing/reference.py reference_encode (oracle)", subset)
-            if mode == params.coding:
-                frame_reference += row["reference_ms"]
+            add(f"coding {mode}", n, measure(encode, repeats),
+                measure(lambda: reference_encode(candidates[:subset], templates, neighbours[:subset], sizes,
+                                                 ridge_c, constrained), reference_repeats, 0),
+                "nrmlc/testing/reference.py reference_encode (oracle)", subset)
 
             def combine(ridge_w=ridge_w, constrained=constrained, coefficients=coefficients):
                 return combine_dictionaries(gram, dots, sq_norms, neighbours, coefficients, sizes, n_positive,
                                             ridge_w, constrained, params.n_iterations)
 
-            row = add(f"weights+confidence {mode}", n, measure(combine, repeats),
-                      measure(lambda: reference_combine(candidates[:subset], templates, neighbours[:subset],
-                                                        coefficients[:subset], sizes, n_positive, ridge_w,
-                                                        constrained, params.n_iterations), reference_repeats, 0),
-                      "nrmlc/testing/reference.py reference_combine (oracle)", subset)
-            if mode == params.coding:
-                frame_reference += row["reference_ms"]
-
-        for mode in MODES:
-            if mode != params.coding and n != 600:
-                continue
-            stepper = copy.deepcopy(tracker)
-            stepper.params = tracker.params.replace(coding=mode)
-            timing = measure(lambda: stepper.step(frame), repeats)
-            row = add(f"tracker frame {mode}", n, timing)
-            if mode == params.coding:
-                row.update(reference="sum of the kernel references (estimate)", reference_ms=frame_reference,
-                           reference_on=n, speedup=frame_reference / timing["ms"])
+            add(f"weights+confidence {mode}", n, measure(combine, repeats),
+                measure(lambda: reference_combine(candidates[:subset], templates, neighbours[:subset],
+                                                  coefficients[:subset], sizes, n_positive, ridge_w,
+                                                  constrained, params.n_iterations), reference_repeats, 0),
+                "nrmlc/testing/reference.py reference_combine (oracle)", subset)
     return rows
 
 
@@ -269,42 +407,126 @@ def bench_kernels(sequence, counts, repeats: int, reference_repeats: int, warm_f
 # end to end
 # ---------------------------------------------------------------------------
 
-def _mil_fps(sequence, n_frames: int) -> dict:
-    """OpenCV TrackerMIL on the same frames, decoding excluded (frames preloaded)."""
+def _nrmlc_fps(sequence, frames, params) -> float:
+    """Tracker fps over preloaded frames (decoding excluded), init included, as track_sequence counts."""
+    from nrmlc.tracker.nrmlc_tracker import NRMLCTracker
+
+    tracker = NRMLCTracker(seed=0, params=params)
+    start = time.perf_counter()
+    tracker.init(frames[0], sequence.init_box)
+    for frame in frames[1:]:
+        tracker.update(frame)
+    return (len(frames) - 1) / (time.perf_counter() - start)
+
+
+def _mil_fps(sequence, color_frames) -> float:
+    """OpenCV TrackerMIL on the same frames (BGR, preloaded), init included."""
     import cv2
 
-    frames = [sequence.color_frame(i) for i in range(n_frames)]
     x, y, w, h = (float(v) for v in sequence.init_box)
     box = (int(round(x - 1)), int(round(y - 1)), max(1, int(round(w))), max(1, int(round(h))))
     tracker = cv2.TrackerMIL.create()
     start = time.perf_counter()
-    tracker.init(frames[0], box)
-    for frame in frames[1:]:
+    tracker.init(color_frames[0], box)
+    for frame in color_frames[1:]:
         tracker.update(frame)
-    seconds = time.perf_counter() - start
-    return {"tracker": "OpenCV TrackerMIL", "frames": n_frames, "fps_tracking": (n_frames - 1) / seconds}
+    return (len(color_frames) - 1) / (time.perf_counter() - start)
 
 
-def bench_end_to_end(sequence, n_frames: int | None, repeats: int) -> list[dict]:
+def bench_end_to_end(sequence, n_frames: int | None, rounds: int) -> list[dict]:
+    """NRMLC (each coding mode) and TrackerMIL on the same preloaded frames, in alternating rounds.
+
+    Also times one run with decoding included (``track_sequence`` reading the frames).
+    """
     from nrmlc.tracker.params import TrackerParams
     from nrmlc.tracker.run import track_sequence
 
     total = len(sequence) if n_frames is None else min(n_frames, len(sequence))
-    track_sequence(sequence, TrackerParams(), seed=0, n_frames=min(total, 8))  # warm-up (compilation)
+    frames = _frames(sequence, total)
+    color_frames = _frames(sequence, total, color=True)
+    _nrmlc_fps(sequence, frames[:8], TrackerParams())  # loads the compiled kernels
+    samples = {f"NRMLC {mode}": [] for mode in MODES}
+    samples["OpenCV TrackerMIL"] = []
+    for _ in range(rounds):
+        for mode in MODES:
+            samples[f"NRMLC {mode}"].append(_nrmlc_fps(sequence, frames, TrackerParams(coding=mode)))
+        samples["OpenCV TrackerMIL"].append(_mil_fps(sequence, color_frames))
+    decoded = track_sequence(sequence, TrackerParams(), seed=0, n_frames=total)
     rows = []
-    for mode in MODES:
-        runs = [track_sequence(sequence, TrackerParams(coding=mode), seed=0, n_frames=total)
-                for _ in range(repeats if mode == "regularized" else 1)]
-        tracking = float(np.median([r.fps_tracking for r in runs]))
-        overall = float(np.median([r.fps_total for r in runs]))
-        rows.append({"sequence": sequence.name, "tracker": f"NRMLC {mode}", "frames": total, "runs": len(runs),
-                     "fps_tracking": tracking, "fps_total": overall})
-        print(f"  {sequence.name}: NRMLC {mode:12s} {tracking:7.1f} fps (decoding excluded), "
-              f"{overall:7.1f} fps (included)", flush=True)
-    mil = _mil_fps(sequence, total)
-    mil["sequence"] = sequence.name
-    rows.append(mil)
-    print(f"  {sequence.name}: OpenCV TrackerMIL  {mil['fps_tracking']:7.1f} fps (decoding excluded)", flush=True)
+    for tracker, runs in samples.items():
+        row = {"sequence": sequence.name, "tracker": tracker, "frames": total, "rounds": len(runs),
+               "fps_tracking": float(np.median(runs)), "fps_runs": [round(v, 1) for v in runs]}
+        if tracker == "NRMLC regularized":
+            row["fps_total"] = decoded.fps_total
+        rows.append(row)
+        print(f"  {sequence.name}: {tracker:22s} {row['fps_tracking']:7.1f} fps (decoding excluded; "
+              f"rounds {row['fps_runs']})", flush=True)
+    return rows
+
+
+# ---------------------------------------------------------------------------
+# thread set-ups
+# ---------------------------------------------------------------------------
+
+_THREADS_CHILD = r"""
+import json, sys, time
+setup, data, n_frames = sys.argv[1], sys.argv[2], int(sys.argv[3])
+if setup in ("set_threads first", "serial", "spin-wait"):
+    from nrmlc.config import set_threads
+    set_threads(1 if setup == "serial" else None)
+from nrmlc.tracker.nrmlc_tracker import NRMLCTracker
+if setup == "set_threads after import":
+    from nrmlc.config import set_threads
+    set_threads(None)
+import numba
+from nrmlc.data import open_sequence, synthetic_suite
+sequence = open_sequence(data) if data else synthetic_suite(n_frames=n_frames)[0]
+frames = [sequence.frame(i) for i in range(min(n_frames, len(sequence)))]
+tracker = NRMLCTracker(seed=0)
+tracker.init(frames[0], sequence.init_box)
+for frame in frames[1:6]:
+    tracker.update(frame)
+tracker = NRMLCTracker(seed=0)
+cpu, wall = time.process_time(), time.perf_counter()
+tracker.init(frames[0], sequence.init_box)
+for frame in frames[1:]:
+    tracker.update(frame)
+wall, cpu = time.perf_counter() - wall, time.process_time() - cpu
+print(json.dumps({"fps": (len(frames) - 1) / wall, "cpu_ms_per_frame": 1e3 * cpu / (len(frames) - 1),
+                  "numba_threads": numba.get_num_threads(), "numba_layer": numba.threading_layer()}))
+"""
+
+#: name -> (child set-up, extra environment). The first is the reference of the ratios.
+THREAD_SETUPS = {
+    "API default (nothing called)": ("default", {}),
+    "set_threads() before importing the tracker (as the CLI)": ("set_threads first", {}),
+    "set_threads() after importing the tracker": ("set_threads after import", {}),
+    "one thread: set_threads(1)": ("serial", {}),
+    "numba pool spin-waiting (libgomp default; the bug of issue 14)": ("spin-wait", {"GOMP_SPINCOUNT": "300000"}),
+}
+
+
+def bench_threads(data_sequence: Path | None, rounds: int = 2, n_frames: int = 120) -> list[dict]:
+    """Tracker fps and CPU per frame under each thread set-up, each in a fresh process, interleaved."""
+    samples = {name: [] for name in THREAD_SETUPS}
+    for _ in range(rounds):
+        for name, (setup, extra_env) in THREAD_SETUPS.items():
+            env = {k: v for k, v in os.environ.items() if k not in ("OMP_WAIT_POLICY", "GOMP_SPINCOUNT")}
+            env.update(extra_env)
+            output = subprocess.run([sys.executable, "-c", _THREADS_CHILD, setup,
+                                     str(data_sequence) if data_sequence else "", str(n_frames)],
+                                    env=env, cwd=str(REPO_ROOT), capture_output=True, text=True, check=True)
+            samples[name].append(json.loads(output.stdout.strip().splitlines()[-1]))
+    rows = []
+    for name, runs in samples.items():
+        row = {"setup": name, "runs": len(runs), "frames": n_frames,
+               "sequence": data_sequence.name if data_sequence else "synthetic",
+               "fps": float(np.median([r["fps"] for r in runs])),
+               "cpu_ms_per_frame": float(np.median([r["cpu_ms_per_frame"] for r in runs])),
+               "numba_threads": runs[0]["numba_threads"], "fps_all": [round(r["fps"], 1) for r in runs]}
+        rows.append(row)
+        print(f"  {name:62s} {row['fps']:7.1f} fps  {row['cpu_ms_per_frame']:6.1f} ms CPU/frame  "
+              f"(runs: {row['fps_all']})", flush=True)
     return rows
 
 
@@ -313,224 +535,201 @@ def bench_end_to_end(sequence, n_frames: int | None, repeats: int) -> list[dict]
 # ---------------------------------------------------------------------------
 
 _STARTUP_CHILD = r"""
-import json, sys, time
+import json, time
 start = time.perf_counter()
 import numpy as np
-from nrmlc.config import set_threads
 from nrmlc.tracker.nrmlc_tracker import NRMLCTracker
 imported = time.perf_counter()
-set_threads(int(sys.argv[1]))
 rng = np.random.default_rng(0)
 frame = rng.random((120, 160)).astype(np.float32)
 tracker = NRMLCTracker(seed=0)
 tracker.init(frame, (40.0, 30.0, 40.0, 32.0))
-tracker.update(frame)
+for _ in range(5):
+    tracker.update(frame)
 done = time.perf_counter()
-print(json.dumps({"import_s": imported - start, "first_frame_s": done - imported, "total_s": done - start}))
+print(json.dumps({"import_s": imported - start, "first_frames_s": done - imported, "total_s": done - start}))
 """
 
 
-def _startup_run(cache_dir: str, n_threads: int) -> dict:
+def _startup_run(cache_dir: str) -> dict:
     env = dict(os.environ, NUMBA_CACHE_DIR=cache_dir)
     wall = time.perf_counter()
-    output = subprocess.run([sys.executable, "-c", _STARTUP_CHILD, str(n_threads)], env=env, cwd=str(REPO_ROOT),
+    output = subprocess.run([sys.executable, "-c", _STARTUP_CHILD], env=env, cwd=str(REPO_ROOT),
                             capture_output=True, text=True, check=True)
     result = json.loads(output.stdout.strip().splitlines()[-1])
     result["process_s"] = time.perf_counter() - wall
     return result
 
 
-def bench_startup(n_threads: int, warm_repeats: int = 2) -> dict:
-    """Import + first tracked frame in fresh processes: empty cache, then the cache it wrote."""
+def bench_startup(warm_repeats: int = 2) -> dict:
+    """Import + init + 5 updates (a template update included) in fresh processes: empty cache, then warm."""
     with tempfile.TemporaryDirectory(prefix="nrmlc-numba-cache-") as cache_dir:
-        cold = _startup_run(cache_dir, n_threads)
-        warm = [_startup_run(cache_dir, n_threads) for _ in range(warm_repeats)]
+        cold = _startup_run(cache_dir)
+        warm = [_startup_run(cache_dir) for _ in range(warm_repeats)]
     best = min(warm, key=lambda r: r["total_s"])
     print(f"  cold (empty numba cache): {cold['total_s']:.2f} s (import {cold['import_s']:.2f} s); "
           f"warm (on-disk cache): {best['total_s']:.2f} s (import {best['import_s']:.2f} s)", flush=True)
     return {"cold": cold, "warm": warm, "warm_best": best,
-            "what": "fresh python process: import nrmlc + tracker.init + one update (600 particles), "
-                    "NUMBA_CACHE_DIR = an empty temp dir (cold), then the same dir (warm)"}
-
-
-# ---------------------------------------------------------------------------
-# thread policy
-# ---------------------------------------------------------------------------
-
-_THREADS_CHILD = r"""
-import json, sys, time
-from nrmlc.config import set_threads
-from threadpoolctl import threadpool_limits
-import numba
-n_numba, n_blas, n_frames = (int(v) for v in sys.argv[1:4])
-set_threads(n_numba)
-threadpool_limits(limits=n_blas, user_api="blas")
-from nrmlc.data import synthetic_suite
-from nrmlc.tracker.run import track_sequence
-sequence = synthetic_suite(n_frames=n_frames)[0]
-track_sequence(sequence, n_frames=6)
-cpu = time.process_time()
-result = track_sequence(sequence, n_frames=n_frames)
-print(json.dumps({"fps": result.fps_tracking, "cpu_ms_per_frame": 1e3 * (time.process_time() - cpu) / (n_frames - 1),
-                  "numba_layer": numba.threading_layer()}))
-"""
-
-
-def thread_configurations(n_threads: int) -> dict:
-    """name -> (extra environment, numba threads, BLAS threads)."""
-    n = n_threads
-    return {
-        "serial (numba 1, BLAS 1)": ({}, 1, 1),
-        f"numba {n} spin-wait + BLAS {n} (libgomp default)": ({"GOMP_SPINCOUNT": "300000"}, n, n),
-        f"numba {n} + BLAS {n}": ({}, n, n),
-        f"numba {n} + BLAS 1": ({}, n, 1),
-    }
-
-
-def bench_threads(n_threads: int, rounds: int = 2, n_frames: int = 60) -> list[dict]:
-    """Tracker fps and CPU per frame under several thread set-ups, each in a fresh process.
-
-    The set-ups run interleaved, ``rounds`` times, so that a change of machine
-    load hits them all alike; the median is reported.
-    """
-    configurations = thread_configurations(n_threads)
-    samples = {name: [] for name in configurations}
-    for _ in range(rounds):
-        for name, (extra_env, n_numba, n_blas) in configurations.items():
-            env = dict(os.environ, **extra_env)
-            output = subprocess.run([sys.executable, "-c", _THREADS_CHILD, str(n_numba), str(n_blas), str(n_frames)],
-                                    env=env, cwd=str(REPO_ROOT), capture_output=True, text=True, check=True)
-            samples[name].append(json.loads(output.stdout.strip().splitlines()[-1]))
-    rows = []
-    for name, runs in samples.items():
-        row = {"setup": name, "runs": len(runs), "frames": n_frames,
-               "fps": float(np.median([r["fps"] for r in runs])),
-               "cpu_ms_per_frame": float(np.median([r["cpu_ms_per_frame"] for r in runs])),
-               "fps_all": [round(r["fps"], 1) for r in runs]}
-        rows.append(row)
-        print(f"  {name:48s} {row['fps']:7.1f} fps  {row['cpu_ms_per_frame']:6.1f} ms CPU/frame  "
-              f"(runs: {row['fps_all']})", flush=True)
-    return rows
+            "what": "fresh python process: import the tracker, init and 5 updates (600 particles, one template "
+                    "update), NUMBA_CACHE_DIR = an empty temp dir (cold), then the same dir (warm)"}
 
 
 # ---------------------------------------------------------------------------
 # report
 # ---------------------------------------------------------------------------
 
+def _summary(result: dict) -> list[str]:
+    lines = []
+    by_name = {(row["sequence"], row["tracker"]): row for row in result["end_to_end"]}
+    for (sequence, tracker), row in by_name.items():
+        if tracker != "NRMLC regularized":
+            continue
+        fps = row["fps_tracking"]
+        mil = by_name.get((sequence, "OpenCV TrackerMIL"))
+        line = f"{sequence}: NRMLC (default parameters) runs at {fps:.1f} fps, decoding excluded"
+        if mil:
+            line += (f"; OpenCV TrackerMIL at {mil['fps_tracking']:.1f} fps on the same frames: "
+                     + compare("NRMLC", fps, "TrackerMIL", mil["fps_tracking"]))
+        lines.append(line + ".")
+        if sequence == "Car4":
+            ratio = fps / mil["fps_tracking"] if mil else float("nan")
+            met = fps >= TARGET_FPS and ratio >= TARGET_MIL_RATIO
+            lines.append(f"Car4 target (issue 14: >= {TARGET_FPS:.0f} fps and >= {TARGET_MIL_RATIO:.0f}x "
+                         f"TrackerMIL, same run): {'met' if met else 'NOT met'} ({fps:.1f} fps, {ratio:.1f}x).")
+        for mode in MODES[1:]:
+            other = by_name.get((sequence, f"NRMLC {mode}"))
+            if other:
+                lines.append(f"{sequence}: " + compare(mode, other["fps_tracking"], "regularized", fps) + ".")
+    threads = result.get("threads") or []
+    if threads:
+        reference = threads[0]
+        for row in threads[1:]:
+            lines.append(f"Threads ({row['sequence']}): {row['setup']}: {row['fps']:.1f} fps; "
+                         + compare("it", row["fps"], "the API default", reference["fps"])
+                         + f" ({reference['fps']:.1f} fps).")
+    kernels = [r for r in result.get("kernels", []) if r["n_particles"] == 600 and "numpy BLAS" not in r["kernel"]]
+    if kernels:
+        slowest = min(kernels, key=lambda r: r["speedup"])
+        lines.append(f"Smallest kernel speed-up against its test oracle at N=600: {slowest['speedup']:.0f}x "
+                     f"({slowest['kernel']}).")
+    return lines
+
+
 def _markdown(result: dict) -> str:
     m = result["machine"]
+    blas = ", ".join(str(b["num_threads"]) for b in m["blas"])
     lines = ["# NRMLC timings", "",
-             f"Machine: {m['cpu']}, {m['logical_cores']} logical cores; threads used: numba {m['numba_threads']} "
-             f"({m['numba_threading_layer']}), BLAS {', '.join(str(b['num_threads']) for b in m['blas'])}, "
-             f"OpenCV {m['opencv_threads']}. numpy {m['numpy']}, numba {m['numba']}, OpenCV {m['opencv']}, "
-             f"Python {m['python']}.",
-             f"Load average before / after: {result['load_before']} / {result['load_after']} "
-             "(other processes share the machine when it is above 0; medians are over repeats after a warm-up).",
-             "", "## Kernels vs particles", "",
-             "| kernel | N | ms (median) | reference ms | speed-up | reference |",
-             "|---|---:|---:|---:|---:|---|"]
-    for row in result["kernels"]:
-        reference = f"{row['reference_ms']:.1f}" if "reference_ms" in row else ""
-        speedup = f"{row['speedup']:.0f}x" if "speedup" in row else ""
-        what = row.get("reference", "")
-        if row.get("reference_on", row["n_particles"]) != row["n_particles"]:
-            what += f", timed on {row['reference_on']} candidates, scaled"
-        lines.append(f"| {row['kernel']} | {row['n_particles']} | {row['ms']:.3f} | {reference} | {speedup} | {what} |")
-    lines += ["", "## End to end", "",
-              "| sequence | tracker | frames | fps (decoding excluded) | fps (decoding included) |",
-              "|---|---|---:|---:|---:|"]
+             f"Machine: {m['cpu']}, {m['logical_cores']} logical cores. Threads as the API uses them: numba "
+             f"{m['numba_threads']} ({m['numba_threading_layer']}, OMP_WAIT_POLICY={m['omp_wait_policy']}), "
+             f"BLAS {blas} (products run with one, see nrmlc.config.set_threads), OpenCV {m['opencv_threads']}. "
+             f"numpy {m['numpy']}, numba {m['numba']}, OpenCV {m['opencv']}, Python {m['python']}.",
+             f"Machine load before / after: load average {result['load_before']['load_average']} / "
+             f"{result['load_after']['load_average']}, idle share {result['load_before']['idle_share']} / "
+             f"{result['load_after']['idle_share']} (other processes shared the machine when the idle share is "
+             "well below 1). Compare ratios within this run.", "",
+             "## Summary", ""]
+    lines += [f"- {line}" for line in result["summary"]]
+    stage_sequence = result.get("stage_sequence", "")
+    lines += ["", f"## Stages of a frame ({stage_sequence}, ms per frame)", "",
+              "In real `update` calls, against the floor of each stage: the same call on the same inputs timed "
+              "alone (median), times its calls per frame. Template updates happen every few frames; their time is "
+              "spread over all frames, and their floor is that of their parts (warps, Gram) timed alone. The whole "
+              "frame's floor is the sum of the stage floors; the Python and numpy between the kernels have none.", "",
+              "| N | stage | ms in the frame | floor ms | in frame / floor | calls per frame |",
+              "|---:|---|---:|---:|---:|---:|"]
+    for row in result["stages"]:
+        floor = f"{row['floor_ms']:.3f}" if row.get("floor_ms") else ""
+        ratio = f"{row['ms'] / row['floor_ms']:.2f}" if row.get("floor_ms") else ""
+        calls = f"{row['calls_per_frame']:.2f}" if row.get("calls_per_frame") is not None else ""
+        stage = f"**{row['stage']}** ({row['fps']:.1f} fps)" if row["stage"] == "whole frame" else row["stage"]
+        lines.append(f"| {row['n_particles']} | {stage} | {row['ms']:.3f} | {floor} | {ratio} | {calls} |")
+    lines += ["", "## End to end (decoding excluded; medians of alternating rounds)", "",
+              "| sequence | tracker | frames | fps | rounds (fps) | fps with decoding |",
+              "|---|---|---:|---:|---|---:|"]
     for row in result["end_to_end"]:
-        total = f"{row['fps_total']:.1f}" if "fps_total" in row else "n/a (frames preloaded)"
-        lines.append(f"| {row['sequence']} | {row['tracker']} | {row['frames']} | {row['fps_tracking']:.1f} | {total} |")
+        total = f"{row['fps_total']:.1f}" if "fps_total" in row else ""
+        lines.append(f"| {row['sequence']} | {row['tracker']} | {row['frames']} | {row['fps_tracking']:.1f} | "
+                     f"{row['fps_runs']} | {total} |")
     if result.get("threads"):
-        lines += ["", "## Thread set-ups (synthetic sequence, fresh process each, median of runs)", "",
-                  "| set-up | fps | CPU ms / frame | runs (fps) |", "|---|---:|---:|---|"]
+        lines += ["", "## Thread set-ups (fresh process each, median of interleaved runs)", "",
+                  "| set-up | numba threads | fps | CPU ms / frame | runs (fps) |", "|---|---:|---:|---:|---|"]
         for row in result["threads"]:
-            lines.append(f"| {row['setup']} | {row['fps']:.1f} | {row['cpu_ms_per_frame']:.1f} | {row['fps_all']} |")
-    summary = result.get("summary", {})
-    if summary:
-        lines += ["", "## Summary", ""]
-        lines += [f"- {key}: {value}" for key, value in summary.items()]
+            lines.append(f"| {row['setup']} | {row['numba_threads']} | {row['fps']:.1f} | "
+                         f"{row['cpu_ms_per_frame']:.1f} | {row['fps_all']} |")
+    lines += ["", "## Kernels against their numpy references", "",
+              "| kernel | N | ms (median) | reference ms | speed-up | reference |",
+              "|---|---:|---:|---:|---:|---|"]
+    for row in result["kernels"]:
+        what = row["reference"]
+        if row["reference_on"] != row["n_particles"]:
+            what += f", timed on {row['reference_on']} candidates, scaled"
+        lines.append(f"| {row['kernel']} | {row['n_particles']} | {row['ms']:.3f} | {row['reference_ms']:.1f} | "
+                     f"{row['speedup']:.0f}x | {what} |")
     if result.get("startup"):
         s = result["startup"]
         lines += ["", "## Start-up", "",
                   f"- cold (empty numba cache): {s['cold']['total_s']:.2f} s "
-                  f"(import {s['cold']['import_s']:.2f} s, first frame incl. compilation {s['cold']['first_frame_s']:.2f} s)",
+                  f"(import {s['cold']['import_s']:.2f} s, first frames incl. compilation "
+                  f"{s['cold']['first_frames_s']:.2f} s)",
                   f"- warm (on-disk cache): {s['warm_best']['total_s']:.2f} s "
-                  f"(import {s['warm_best']['import_s']:.2f} s, first frame {s['warm_best']['first_frame_s']:.2f} s)",
+                  f"(import {s['warm_best']['import_s']:.2f} s, first frames {s['warm_best']['first_frames_s']:.2f} s)",
                   f"- measured as: {s['what']}"]
     lines += ["", f"Bench wall time: {result['bench_seconds']:.0f} s.", ""]
     return "\n".join(lines)
 
 
-def _summary(result: dict) -> dict:
-    summary = {}
-    by_name = {}
-    for row in result["end_to_end"]:
-        by_name[(row["sequence"], row["tracker"])] = row
-    for (sequence, tracker), row in by_name.items():
-        if tracker != "NRMLC regularized":
-            continue
-        mil = by_name.get((sequence, "OpenCV TrackerMIL"))
-        constrained = by_name.get((sequence, "NRMLC constrained"))
-        summary[f"{sequence}: regularized fps"] = f"{row['fps_tracking']:.1f}"
-        if mil:
-            summary[f"{sequence}: regularized / TrackerMIL fps"] = f"{row['fps_tracking'] / mil['fps_tracking']:.2f}x"
-        if constrained:
-            summary[f"{sequence}: constrained slower than regularized by"] = (
-                f"{row['fps_tracking'] / constrained['fps_tracking']:.2f}x")
-    speedups = [r for r in result["kernels"]
-                if "speedup" in r and r["n_particles"] == 600 and "numpy BLAS" not in r["kernel"]]
-    if speedups:
-        speedup, kernel = min((r["speedup"], r["kernel"]) for r in speedups)
-        summary["smallest kernel speed-up vs its test-oracle reference at N=600"] = f"{speedup:.0f}x ({kernel})"
-    return summary
-
-
-def run(data: Path | None, out_dir: Path, n_threads: int | None, counts=PARTICLE_COUNTS, repeats: int = 15,
-        reference_repeats: int = 2, synthetic_frames: int = 120, real_frames: int | None = 300,
-        e2e_repeats: int = 3, startup: bool = True, reference_subset: dict | None = None,
-        thread_study: bool = True, blas_threads: int | None = None) -> dict:
-    from nrmlc.config import set_threads
+def run(data: Path | None, out_dir: Path, n_threads: int | None = None, counts=PARTICLE_COUNTS, repeats: int = 15,
+        reference_repeats: int = 2, synthetic_frames: int = 120, real_frames: int | None = REAL_FRAMES,
+        e2e_rounds: int = 3, startup: bool = True, reference_subset: dict | None = None,
+        thread_study: bool = True, stage_frames: int = 60) -> dict:
+    from nrmlc import io
     from nrmlc.data import open_sequence, synthetic_suite
 
     began = time.perf_counter()
-    threads = set_threads(n_threads)
-    if blas_threads is not None:
-        from threadpoolctl import threadpool_limits
+    if n_threads is not None:  # otherwise the API's own configuration, untouched
+        from nrmlc.config import set_threads
 
-        threadpool_limits(limits=blas_threads, user_api="blas")
-    result = {"load_before": _load_average()}
+        set_threads(n_threads)
+    result = {"load_before": _load(), "threads_option": n_threads}
     synthetic = synthetic_suite(n_frames=synthetic_frames)[0]
-    print(f"kernels ({synthetic.name}, {threads} threads):", flush=True)
-    result["kernels"] = bench_kernels(synthetic, counts, repeats, reference_repeats,
-                                      warm_frames=min(25, synthetic_frames - 1),
-                                      reference_subset=reference_subset or REFERENCE_SUBSET)
-    print("end to end:", flush=True)
-    result["end_to_end"] = bench_end_to_end(synthetic, None, e2e_repeats)
+    car4 = None
     if data is not None:
-        car4 = Path(data) / "Car4"
-        if car4.is_dir():
-            result["end_to_end"] += bench_end_to_end(open_sequence(car4), real_frames, 1)
+        if (Path(data) / "Car4").is_dir():
+            car4 = open_sequence(Path(data) / "Car4")
         else:
-            print(f"  (no Car4 under {data}; skipped)", flush=True)
+            print(f"  (no Car4 under {data}; the real-data rows are skipped)", flush=True)
+    stage_sequence = car4 if car4 is not None else synthetic
+    result["stage_sequence"] = stage_sequence.name
+    print(f"stages of a frame ({stage_sequence.name}):", flush=True)
+    result["stages"] = bench_stages(stage_sequence, counts, warm_frames=min(20, len(stage_sequence) // 3),
+                                    timed_frames=stage_frames)
+    print("end to end:", flush=True)
+    result["end_to_end"] = bench_end_to_end(synthetic, None, e2e_rounds)
+    if car4 is not None:
+        result["end_to_end"] += bench_end_to_end(car4, real_frames, e2e_rounds)
     result["threads"] = None
     if thread_study:
         print("thread set-ups:", flush=True)
-        result["threads"] = bench_threads(threads)
+        result["threads"] = bench_threads(Path(car4.path) if car4 is not None else None)
+    print(f"kernels against their references ({synthetic.name}):", flush=True)
+    result["kernels"] = bench_kernels(synthetic, counts, repeats, reference_repeats,
+                                      warm_frames=min(25, synthetic_frames - 1),
+                                      reference_subset=reference_subset or REFERENCE_SUBSET)
     result["startup"] = None
     if startup:
         print("start-up:", flush=True)
-        result["startup"] = bench_startup(threads)
-    result["machine"] = machine_info(threads)
-    result["load_after"] = _load_average()
+        result["startup"] = bench_startup()
+    result["machine"] = machine_info()
+    result["load_after"] = _load()
     result["summary"] = _summary(result)
     result["bench_seconds"] = time.perf_counter() - began
+    out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
-    (out_dir / "bench.json").write_text(json.dumps(result, indent=1, default=str))
+    io.write_text(out_dir / "bench.json", json.dumps(result, indent=1, default=str))
     markdown = _markdown(result)
-    (out_dir / "bench.md").write_text(markdown)
+    io.write_text(out_dir / "bench.md", markdown)
     print(markdown)
+    print(f"wrote {out_dir / 'bench.md'} and bench.json", flush=True)
     return result
 
 
@@ -538,19 +737,20 @@ def main(argv=None) -> dict:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0],
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--data", type=Path, default=None, help="folder of real sequences (uses <data>/Car4)")
-    parser.add_argument("--out", type=Path, default=REPO_ROOT / "figures", help="where bench.json/bench.md go")
-    parser.add_argument("--threads", type=int, default=None, help="threads for numba, BLAS and OpenCV (default: all cores)")
-    parser.add_argument("--blas-threads", type=int, default=None,
-                        help="override the BLAS thread count set by set_threads (to compare policies)")
+    parser.add_argument("--out", type=Path, default=DEFAULT_OUT,
+                        help="folder for bench.md and bench.json (default: out/figures, git-ignored; "
+                             "'figures' replaces the committed report)")
+    parser.add_argument("--threads", type=int, default=None,
+                        help="call nrmlc.config.set_threads(THREADS) first (default: leave the API's configuration)")
     parser.add_argument("--quick", action="store_true",
                         help="tiny settings (for tests): N=50, few repeats, no start-up or thread study")
     args = parser.parse_args(argv)
     if args.quick:
         return run(args.data, args.out, args.threads, counts=(50,), repeats=2, reference_repeats=1,
-                   synthetic_frames=12, real_frames=12, e2e_repeats=1, startup=False,
+                   synthetic_frames=12, real_frames=12, e2e_rounds=1, startup=False,
                    reference_subset={"regularized": 10, "plain": 10, "constrained": 4}, thread_study=False,
-                   blas_threads=args.blas_threads)
-    return run(args.data, args.out, args.threads, blas_threads=args.blas_threads)
+                   stage_frames=4)
+    return run(args.data, args.out, args.threads)
 
 
 if __name__ == "__main__":

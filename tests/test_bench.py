@@ -53,17 +53,43 @@ def test_quick_bench_writes_json_and_markdown(tmp_path):
     bench.main(["--quick", "--out", str(tmp_path)])
     data = json.loads((tmp_path / "bench.json").read_text())
     kernels = {row["kernel"] for row in data["kernels"]}
-    expected = {"warp", "distances+knn", "tracker frame regularized"}
-    expected |= {f"{name} {mode}" for name in ("coding", "weights+confidence") for mode in bench.MODES}
+    expected = {"warp", "distances+knn"} | {f"{name} {mode}" for name in ("coding", "weights+confidence")
+                                            for mode in bench.MODES}
     assert expected <= kernels
-    for row in data["kernels"]:
-        assert row["ms"] > 0
-        if row["kernel"] != "tracker frame regularized" and row["kernel"].startswith("tracker frame"):
-            continue
-        assert row["reference_ms"] > 0 and row["speedup"] > 0
+    assert all(row["ms"] > 0 and row["reference_ms"] > 0 and row["speedup"] > 0 for row in data["kernels"])
+    stages = {row["stage"]: row for row in data["stages"]}
+    assert {"warp (particles)", "product (sgemm)", "nearest templates", "coding", "weights + confidence",
+            bench.OTHER_STAGE, "whole frame"} <= set(stages)
+    for name, row in stages.items():
+        assert row["ms"] > 0 or name == bench.OTHER_STAGE
+        if name not in (bench.OTHER_STAGE,):
+            assert row["floor_ms"] > 0
+    # The stages and what lies between them add up to the frame.
+    frame = stages["whole frame"]["ms"]
+    assert abs(sum(row["ms"] for name, row in stages.items() if name != "whole frame") - frame) < 1e-6 * frame + 1e-9
     trackers = {row["tracker"] for row in data["end_to_end"]}
     assert {"NRMLC regularized", "NRMLC constrained", "NRMLC plain", "OpenCV TrackerMIL"} <= trackers
     assert all(row["fps_tracking"] > 0 for row in data["end_to_end"])
-    assert data["machine"]["threads"] >= 1 and data["machine"]["numpy"]
+    assert data["machine"]["numba_threads"] >= 1 and data["machine"]["numpy"]
+    assert data["threads_option"] is None  # the API's own configuration, untouched
     markdown = (tmp_path / "bench.md").read_text()
-    assert "| warp |" in markdown and "TrackerMIL" in markdown
+    assert "| warp |" in markdown and "TrackerMIL" in markdown and "## Stages of a frame" in markdown
+    summary = "\n".join(data["summary"])
+    assert "constrained is" in summary and " than regularized" in summary
+    assert "slower by" not in markdown and "faster by" not in markdown
+
+
+def test_ratios_are_in_plain_words():
+    from experiments.bench import compare
+
+    assert compare("constrained", 90.0, "regularized", 117.0) == "constrained is 1.30x slower than regularized"
+    assert compare("constrained", 117.0, "regularized", 90.0) == "constrained is 1.30x faster than regularized"
+    assert compare("NRMLC", 180.0, "TrackerMIL", 18.0) == "NRMLC is 10.00x faster than TrackerMIL"
+    assert "as fast as" in compare("a", 100.0, "b", 100.2)
+
+
+def test_bench_writes_out_figures_by_default_not_the_committed_report():
+    from experiments import bench
+
+    assert bench.DEFAULT_OUT == REPO_ROOT / "out" / "figures"
+    assert "out/" in (REPO_ROOT / ".gitignore").read_text().splitlines(), "out/ must be git-ignored"
