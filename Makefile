@@ -4,7 +4,8 @@
 #       options: OUT=figures (the committed real-data results), SEQUENCES=Car4,Caviar1,
 #       SEEDS=5 SWEEP_SEEDS=2 ABLATION_SEEDS=1 JOBS=2 MAX_FRAMES=N ONLY=script,script
 #       PEERS=dir (default <DATA>/../peer_results) DRY_RUN=1 (print the grid and stop)
-#   make test                    the test suite (what CI runs)
+#       DASK=tcp://host:8786 (run the grid on a Dask cluster; pip install -e .[cluster])
+#   make test                    the linter (ruff) and the test suite (what CI runs)
 #   make theorem                 numeric checks of Theorem 1 (seconds)
 #   make bench [DATA=path]       kernel and tracker timings -> out/figures/bench.md (OUT=figures: committed)
 
@@ -23,6 +24,8 @@ MAX_FRAMES  ?=
 ONLY        ?=
 DRY_RUN     ?=
 STAMP       := $(VENV)/.installed
+TEST_STAMP  := $(VENV)/.installed-test
+DASK        ?=
 
 export PYTHONHASHSEED := 0
 
@@ -39,7 +42,13 @@ $(STAMP): requirements.txt pyproject.toml
 
 install: $(STAMP)
 
-test: $(STAMP)
+# The tests also need the linter and the cluster extra (tests/test_cluster.py starts a Dask LocalCluster).
+$(TEST_STAMP): $(STAMP)
+	$(PY) -m pip install --quiet -e ".[test,lint,cluster]"
+	touch $(TEST_STAMP)
+
+test: $(TEST_STAMP)
+	$(PY) -m ruff check .
 	$(PY) -m pytest
 
 figures: $(STAMP)
@@ -47,7 +56,7 @@ figures: $(STAMP)
 	    $(if $(SEQUENCES),--sequences "$(SEQUENCES)") $(if $(PEERS),--peers "$(PEERS)") \
 	    $(if $(SEEDS),--seeds $(SEEDS)) $(if $(SWEEP_SEEDS),--sweep-seeds $(SWEEP_SEEDS)) \
 	    $(if $(ABLATION_SEEDS),--ablation-seeds $(ABLATION_SEEDS)) $(if $(JOBS),--jobs $(JOBS)) \
-	    $(if $(MAX_FRAMES),--max-frames $(MAX_FRAMES)) $(if $(ONLY),--only "$(ONLY)") $(if $(DRY_RUN),--dry-run)
+	    $(if $(MAX_FRAMES),--max-frames $(MAX_FRAMES)) $(if $(ONLY),--only "$(ONLY)") $(if $(DRY_RUN),--dry-run) $(if $(DASK),--dask "$(DASK)")
 
 theorem: $(STAMP)
 	$(PY) -m experiments.theorem1_checks
