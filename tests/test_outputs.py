@@ -222,7 +222,9 @@ def test_signal_during_a_video_run_keeps_earlier_files(signum, tmp_path):
     time.sleep(0.3)  # well inside the run: frames are being tracked and drawn
     process.send_signal(signum)
     _, err = process.communicate(timeout=60)
-    assert process.returncode == 130, err
+    # 130, or death by SIGINT: CPython may end a run whose Ctrl-C was handled by re-sending
+    # itself SIGINT (so that a shell sees an interrupted program); $? is 130 either way.
+    assert process.returncode in (130, -signal.SIGINT), err
     assert err.strip().splitlines()[-1] == "interrupted"
     assert "Traceback" not in err
     assert out.read_text() == "earlier result\n"
