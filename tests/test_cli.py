@@ -137,6 +137,21 @@ def _gt_bytes(data: bytes):
     return breaker
 
 
+def _truncate(name: str):
+    def breaker(folder: Path) -> None:
+        data = (folder / "img" / name).read_bytes()
+        (folder / "img" / name).write_bytes(data[: len(data) // 2])
+    return breaker
+
+
+def _truncated_bmp(folder: Path) -> None:
+    image = cv2.imread(str(folder / "img" / "0003.png"), cv2.IMREAD_UNCHANGED)
+    (folder / "img" / "0003.png").unlink()
+    ok, encoded = cv2.imencode(".bmp", image)
+    assert ok
+    (folder / "img" / "0003.bmp").write_bytes(encoded.tobytes()[:-500])
+
+
 def _as_file(folder: Path) -> None:
     shutil.rmtree(folder)
     folder.write_text("not a folder")
@@ -195,6 +210,8 @@ BAD_INPUT = {
                                  r"groundtruth_rect\.txt:2: expected 4 numbers"),
     "list-missing-root": (_nothing, ["list", "{seq}/nowhere"], r"nowhere: data root not found"),
     # second round (issue 12)
+    "truncated-png": (_truncate("0003.png"), [], r"0003\.png: cannot read image \(truncated PNG: no IEND chunk\)"),
+    "truncated-bmp": (_truncated_bmp, [], r"0003\.bmp: cannot read image \(truncated BMP: \d+ of \d+ bytes\)"),
     "init-box-empty": (_nothing, ["--init-box="], r"--init-box: expected 4 numbers \(x,y,w,h\), got 0"),
     "particles-disagree": (_nothing, ["--particles", "40", "--param", "n_particles=30"],
                            r"--particles 40 and --param n_particles=30 disagree"),
@@ -328,6 +345,16 @@ def test_subprocess_error_line_and_debug_traceback(seq, tmp_path):
     debug = run_cli(["--debug", "track", f"{seq}-absent", "--out", tmp_path / "r.txt"], tmp_path)
     assert debug.returncode != 0
     assert "Traceback" in debug.stderr and "nrmlc.errors.DataError: " in debug.stderr
+
+
+def test_subprocess_truncated_png_is_our_line_only(seq, tmp_path):
+    data = (seq / "img" / "0004.png").read_bytes()
+    (seq / "img" / "0004.png").write_bytes(data[: len(data) // 2])
+    result = run_cli(["track", seq, "--out", tmp_path / "r.txt", *FAST], tmp_path)
+    assert result.returncode == 2
+    # Nothing from libpng or OpenCV: refused before decoding.
+    assert result.stderr.strip().splitlines() == [
+        f"error: {seq / 'img' / '0004.png'}: cannot read image (truncated PNG: no IEND chunk)"]
 
 
 def test_subprocess_warnings_are_one_line_each(seq, tmp_path):

@@ -25,6 +25,8 @@ from nrmlc.errors import DataError, ParameterError
 
 #: Smallest frame (pixels per side) the tracker accepts.
 MIN_FRAME_SIDE = 2
+_PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
+_PNG_END = b"IEND\xaeB`\x82"  # the IEND chunk's type and its fixed CRC
 
 
 class Sequence:
@@ -174,6 +176,13 @@ class Sequence:
         if file.suffix.lower() in (".jpg", ".jpeg") and not _jpeg_is_complete(data):
             # libjpeg decodes a truncated file without error (grey bottom rows): refuse it.
             raise DataError(f"{file}: cannot read image (truncated JPEG: no end-of-image marker)")
+        if data.startswith(_PNG_SIGNATURE) and _PNG_END not in data[-16:]:
+            # Refused here, before libpng prints its own lines on stderr.
+            raise DataError(f"{file}: cannot read image (truncated PNG: no IEND chunk)")
+        if data.startswith(b"BM") and len(data) >= 6 and len(data) < int.from_bytes(data[2:6], "little"):
+            # OpenCV decodes a short BMP without a word, the missing rows as black.
+            raise DataError(f"{file}: cannot read image (truncated BMP: {len(data)} of "
+                            f"{int.from_bytes(data[2:6], 'little')} bytes)")
         image = cv2.imdecode(np.frombuffer(data, dtype=np.uint8), cv2.IMREAD_UNCHANGED)
         if image is None:
             raise DataError(f"{file}: cannot read image (missing, corrupt or unsupported format)")
