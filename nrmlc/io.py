@@ -241,5 +241,7 @@ def write_boxes(path: str | os.PathLike, boxes: np.ndarray) -> Path:
     however small or large.
     """
     boxes = np.asarray(boxes, dtype=np.float64)
+    if boxes.ndim != 2 or boxes.shape[1] != 4 or len(boxes) == 0:
+        raise ParameterError(f"{os.fspath(path)}: boxes must have shape (n, 4) with n >= 1, got {boxes.shape}")
     lines = [",".join(format_number(v) for v in row) for row in boxes]
     return write_text(path, "\n".join(lines) + "\n")

@@ -320,3 +320,10 @@ def test_video_writer_that_wrote_nothing_keeps_the_earlier_video(seq, tmp_path):
     with pytest.raises(DataError, match=r"--video .*v\.mp4: the video writer wrote nothing"):
         writer.close()
     assert video.read_bytes() == b"an earlier video" and not temporaries(tmp_path)
+
+
+@pytest.mark.parametrize("boxes", [np.ones(4), np.ones((3, 5)), np.ones((0, 4))], ids=["1-d", "5-columns", "empty"])
+def test_write_boxes_refuses_other_shapes(boxes, tmp_path):
+    with pytest.raises(ParameterError, match=r"r\.txt: boxes must have shape \(n, 4\)"):
+        io.write_boxes(tmp_path / "r.txt", boxes)
+    assert not (tmp_path / "r.txt").exists()
