@@ -22,11 +22,14 @@ Outputs ``figures/ablation_oracle_recentring.{png,csv,json}``.
 from __future__ import annotations
 
 import dataclasses
+import sys
 
 import numpy as np
 
 from experiments import paper_numbers as paper
-from experiments.common import clean, collect_and_plot, fmt, mean_std, paper_name, save_figure, write_csv
+from experiments.grid import script_main
+from experiments.sequence_sets import paper_name
+from experiments.tables import clean, fmt, mean_std, save_figure, write_csv
 from nrmlc import io
 
 STEM = "ablation_oracle_recentring"
@@ -75,40 +78,45 @@ def collect(context) -> dict:
 
 
 def plot(data: dict, path) -> None:
+    """One labelled line per sequence over R = 1, 10, 50 and free, the paper's Table II value
+    beside it (a star), and the averages in black."""
     import matplotlib.pyplot as plt
 
     labels = [period_label(p) for p in data["periods"]]
-    fig, ax = plt.subplots(figsize=(6.4, 3.6))
     positions = np.arange(len(labels))
+    fig, ax = plt.subplots(figsize=(8.6, 4.2))
     colours = plt.get_cmap("tab10")
     for i, row in enumerate(data["rows"]):
-        is_paper = row["paper_name"] is not None
-        ax.plot(positions, [row[k] for k in labels], marker="o" if is_paper else ".",
-                lw=1.6 if is_paper else 0.7, alpha=1.0 if is_paper else 0.45,
-                color=colours(i % 10) if is_paper else "0.55", label=row["sequence"] if is_paper else None)
+        colour = colours(i % 10)
+        name = row["sequence"] if row["paper_name"] in (None, row["sequence"]) else \
+            f"{row['sequence']} ({row['paper_name']})"
+        ax.plot(positions, [row[k] for k in labels], marker="o", ms=4, lw=1.2, color=colour, label=name)
         if row["paper"] is not None:
-            ax.axhline(row["paper"], color=colours(i % 10), ls="--", lw=0.8)
+            ax.plot([len(labels)], [row["paper"]], marker="*", ms=9, ls="", color=colour)
     for group, style in (("paper's sequences", "k-"), ("other sequences", "k:")):
         if group in data["averages"]:
-            ax.plot(positions, [data["averages"][group][k] for k in labels], style, lw=2.4,
-                    label=f"average, {group}")
-    ax.set_xticks(positions)
-    ax.set_xticklabels(labels)
-    ax.set_xlabel("estimate moved to the ground truth every R frames")
+            average = data["averages"][group]
+            ax.plot(positions, [average[k] for k in labels], style, lw=2.6, label=f"average, {group}")
+            if average.get("paper") is not None:
+                ax.plot([len(labels)], [average["paper"]], marker="*", ms=13, ls="", color="black")
+    has_paper = any(row["paper"] is not None for row in data["rows"])
+    ticks = labels + (["paper\n(Table II)"] if has_paper else [])
+    ax.set_xticks(np.arange(len(ticks)))
+    ax.set_xticklabels(ticks)
+    ax.set_xlim(-0.3, len(ticks) - 0.7)
+    ax.set_xlabel("estimate moved to the ground truth every R frames (free: never)")
     ax.set_ylabel("mean overlap")
     ax.set_ylim(0, 1)
     ax.grid(alpha=0.3)
-    ax.legend(fontsize=7, loc="lower left", ncol=2)
-    ax.set_title(f"Per-frame model vs accumulated error (dashed: paper, Table II; gray: other sequences), "
-                 f"seeds {data['seeds']}",
-                 fontsize=8)
+    ax.legend(fontsize=7, loc="center left", bbox_to_anchor=(1.01, 0.5), frameon=False)
+    seeds = data["seeds"]
+    ax.set_title("Per-frame model vs accumulated error"
+                 + (f", seed {seeds[0]}" if len(seeds) == 1 else f", mean over seeds {seeds}"), fontsize=9)
     save_figure(fig, path, dpi=100)
 
 
-def main(context=None) -> dict:
-    """Run (or load) the re-centred runs, plot them and write their numbers; returns the report section
-    (``title``, ``figures``, ``markdown``)."""
-    context, data, png, _ = collect_and_plot(context, __doc__, STEM, collect, plot)
+def report(context, data: dict) -> dict:
+    """Write the numbers (CSV/JSON); returns the report section (``title``, ``figures``, ``markdown``)."""
     labels = [period_label(p) for p in data["periods"]]
     header = ["sequence"] + labels + [f"{k} std" for k in labels] + [f"{k} cle" for k in labels] + ["paper"]
     write_csv(context.output(STEM, ".csv"), header, [[r[k] for k in header] for r in data["rows"]])
@@ -123,8 +131,12 @@ def main(context=None) -> dict:
     for group, values in data["averages"].items():
         text.append(f"| average, {group} | " + " | ".join(fmt(values[k], 3) for k in labels)
                     + f" | {fmt(values['paper'], 3)} |")
-    return {"title": TITLE, "figures": [png.name], "markdown": "\n".join(text)}
+    return {"title": TITLE, "figures": [f"{STEM}.png"], "markdown": "\n".join(text)}
+
+
+def main(argv=None) -> int:
+    return script_main(__name__, argv)
 
 
 if __name__ == "__main__":
-    main()
+    sys.exit(main())

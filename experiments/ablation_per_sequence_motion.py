@@ -30,10 +30,14 @@ Outputs ``figures/ablation_per_sequence_motion.{png,csv,json}``.
 """
 from __future__ import annotations
 
+import sys
+
 import numpy as np
 
 from experiments import paper_numbers as paper
-from experiments.common import clean, collect_and_plot, fmt, mean_std, paper_name, save_figure, write_csv
+from experiments.grid import script_main
+from experiments.sequence_sets import paper_name
+from experiments.tables import clean, fmt, mean_std, save_figure, write_csv
 from nrmlc import io
 
 STEM = "ablation_per_sequence_motion"
@@ -115,9 +119,11 @@ def plot(data: dict, path) -> None:
     import matplotlib.pyplot as plt
 
     rows = data["rows"]
-    fig, ax = plt.subplots(figsize=(1.9 * max(len(rows), 1) + 2.0, 3.4))
+    fig, ax = plt.subplots(figsize=(max(1.9 * len(rows) + 2.0, 7.0), 3.6))
     if not rows:
-        ax.text(0.5, 0.5, "none of the given sequences has lineage motion parameters", ha="center", va="center")
+        ax.text(0.5, 0.5, "None of the given sequences has motion parameters in the lineage's trackparam.m\n"
+                          f"({', '.join(CLASSIC_MOTION)}): nothing to compare.", ha="center", va="center",
+                fontsize=10, wrap=True)
         ax.set_axis_off()
     else:
         positions = np.arange(len(rows))
@@ -136,14 +142,14 @@ def plot(data: dict, path) -> None:
         ax.set_ylabel("mean overlap")
         ax.grid(axis="y", alpha=0.3)
         ax.legend(fontsize=8, loc="upper center", ncol=3)
-    ax.set_title(f"Motion parameters: one set vs per sequence, mean ± std over seeds {data['seeds']}", fontsize=9)
+    seeds = data["seeds"]
+    ax.set_title("Motion parameters: one set for all sequences vs the lineage's per-sequence affsig\n"
+                 + (f"seed {seeds[0]}" if len(seeds) == 1 else f"mean ± std over seeds {seeds}"), fontsize=9)
     save_figure(fig, path, dpi=100)
 
 
-def main(context=None) -> dict:
-    """Run (or load) the comparison, plot it and write its numbers; returns the report section
-    (``title``, ``figures``, ``markdown``)."""
-    context, data, png, _ = collect_and_plot(context, __doc__, STEM, collect, plot)
+def report(context, data: dict) -> dict:
+    """Write the numbers (CSV/JSON); returns the report section (``title``, ``figures``, ``markdown``)."""
     header = ["sequence", "motion_sigmas_classic", "overlap_default", "overlap_default_std", "overlap_classic",
               "overlap_classic_std", "overlap_paper", "cle_default", "cle_classic", "cle_paper"]
     write_csv(context.output(STEM, ".csv"), header,
@@ -152,7 +158,7 @@ def main(context=None) -> dict:
     io.write_json(context.output(STEM, ".json"), clean(dict(data, title=TITLE, classic_motion=CLASSIC_MOTION)))
 
     if not data["rows"]:
-        return {"title": TITLE, "figures": [png.name],
+        return {"title": TITLE, "figures": [f"{STEM}.png"],
                 "markdown": "None of the given sequences is in the lineage's `trackparam.m` "
                             "(Car4, Caviar1, Occlusion1, Occlusion2); nothing to compare."}
     text = [f"Mean overlap (± std over seeds {data['seeds']}) with nrmlc's one default motion model and with the "
@@ -168,8 +174,12 @@ def main(context=None) -> dict:
     papers = [r["overlap_paper"] for r in data["rows"] if r["overlap_paper"] is not None]
     text.append(f"| average | | {default:.3f} | {classic:.3f} | "
                 f"{fmt(float(np.mean(papers)), 3) if len(papers) == len(data['rows']) else '–'} |")
-    return {"title": TITLE, "figures": [png.name], "markdown": "\n".join(text)}
+    return {"title": TITLE, "figures": [f"{STEM}.png"], "markdown": "\n".join(text)}
+
+
+def main(argv=None) -> int:
+    return script_main(__name__, argv)
 
 
 if __name__ == "__main__":
-    main()
+    sys.exit(main())

@@ -1,6 +1,6 @@
 """Ablations: constraint versus regularisation, and the tracker's other design choices.
 
-Seven families, each against the default (paper) tracker:
+Families, each against the default tracker (the first row of each):
 
 - coding: ``regularized`` (the paper's l2-regularised coder, lambda = 1,
   beta = 0.1) vs ``constrained`` (the exact non-negative problems the paper
@@ -9,26 +9,36 @@ Seven families, each against the default (paper) tracker:
   with k = 5, 8 or 10;
 - occlusion detection on vs off;
 - confidence: the corrected h = exp(-alpha (eps+ - eps-)) vs the printed form;
+- the switches beyond the paper (:data:`SWITCHES`): template sampling (SCM's
+  vs the printed annulus), propagation (condensation vs around the best),
+  translation noise (pixels vs relative to the size), patch normalisation
+  (unit vs centred), every choice of each;
+- preset: the default tracker vs ``TrackerParams.paper()`` (the paper as printed);
 - scale noise of the motion model (which the paper does not state): 1% of the
   size per frame (default) vs 0.25%, 0.5% and 2%;
 - particles (not stated either): 600 (default) vs half and twice as many;
-- template radii r and s (not stated either): r = 2, s = 16 template pixels
-  (default) vs half and twice each one, the other kept.
+- the template spread: under SCM sampling the positive centres' sigma (half and
+  twice the default), under the annulus the radii r and s (half and twice each).
 
-Each configuration runs on the paper's given sequences with every sweep seed.
+Each configuration runs on the paper's given sequences with the ablation seeds.
+These runs are scored on the ground truth of Tables I/II, so they report; no
+default is chosen on them (defaults come from ``experiments.devset``).
 Reported per configuration: mean overlap and CLE (mean ± std over seeds of the
 across-sequence average), the share of negative entries among all
 candidates' coefficients c and dictionary weights w (``negative_share_c`` /
-``negative_share_w``, mean over frames and runs), the share of frames judged
-occluded, and the tracking speed (frames / tracking seconds over all runs).
-Outputs ``figures/ablations.{png,csv,json}``.
+``negative_share_w``, mean over frames and runs) and the share of frames judged
+occluded. Outputs ``ablations.{png,csv,json}``.
 """
 from __future__ import annotations
+
+import sys
 
 import numpy as np
 
 from experiments import paper_numbers as paper
-from experiments.common import clean, collect_and_plot, fmt, mean_std, paper_name, save_figure, score, write_csv
+from experiments.grid import params_differences, score, script_main
+from experiments.sequence_sets import paper_name
+from experiments.tables import clean, fmt, mean_std, save_figure, write_csv
 from experiments.fig4_lambda_sweep import plain_params
 from nrmlc import io
 
@@ -39,8 +49,10 @@ TITLE = ("Ablations: constraint vs regularisation, dictionaries, occlusion detec
 #: Relative scale noise per frame (motion_sigmas[2]) of the scale-noise family.
 SCALE_SIGMAS = (0.0025, 0.005, 0.01, 0.02)
 
+#: Reported per configuration: (key, column name, decimals). Speed is not one of them: runs share
+#: the machine with other work, so their fps measure its load; ``make bench`` measures speed.
 METRICS = (("overlap", "mean overlap", 3), ("cle", "CLE (px)", 1), ("negative_share_c", "negative share of c", 4),
-           ("negative_share_w", "negative share of w", 4), ("occluded", "frames occluded", 3), ("fps", "fps", 1))
+           ("negative_share_w", "negative share of w", 4), ("occluded", "frames occluded", 3))
 
 
 #: The tracker's switches beyond the paper (issue 11), one family each: (family, field).
@@ -125,7 +137,7 @@ def _run_numbers(result, spec) -> dict:
 
     return {"overlap": evaluation.mean_overlap, "cle": evaluation.mean_center_error,
             "negative_share_c": frames_mean("negative_share_c"), "negative_share_w": frames_mean("negative_share_w"),
-            "occluded": frames_mean("occluded"), "frames": len(result.boxes) - 1, "seconds": result.seconds_tracking}
+            "occluded": frames_mean("occluded")}
 
 
 def collect(context) -> dict:
@@ -137,55 +149,60 @@ def collect(context) -> dict:
         for label, params in configs:
             specs = context.specs(sequences, params, seeds, label=f"ablation {family}: {label}")
             numbers = {(s.sequence.name, s.seed): _run_numbers(r, s) for s, r in zip(specs, context.run(specs))}
-            row = {"label": label, "params": {k: v for k, v in params.as_dict().items()
-                                              if k in ("coding", "lam", "beta", "dictionary_sizes",
-                                                       "occlusion_detection", "confidence", "motion_sigmas")}}
+            row = {"label": label, "changed": params_differences(params, context.base_params)}
             for key in ("overlap", "cle", "negative_share_c", "negative_share_w", "occluded"):
                 by_seed = [np.nanmean([numbers[(s.name, seed)][key] for s in sequences]) for seed in seeds]
                 row[key], row[f"{key}_std"] = mean_std(by_seed)
                 row[f"{key}_by_sequence"] = {s.name: mean_std(numbers[(s.name, seed)][key] for seed in seeds)[0]
                                              for s in sequences}
-            frames = sum(v["frames"] for v in numbers.values())
-            seconds = sum(v["seconds"] for v in numbers.values())
-            row["fps"], row["fps_std"] = (frames / seconds if seconds > 0 else float("nan")), None
             rows.append(row)
         out.append({"family": family, "rows": rows})
     return {"families": out, "sequences": [s.name for s in sequences], "seeds": seeds}
 
 
 def plot(data: dict, path) -> None:
+    """Mean overlap and CLE of every configuration, grouped by family: a bar for the average
+    over the sequences, a dot per sequence, the default tracker's average as a dotted line."""
     import matplotlib.pyplot as plt
 
-    n_rows, n_cols = len(data["families"]), len(METRICS)
-    fig, axes = plt.subplots(n_rows, n_cols, figsize=(3.1 * n_cols, 2.7 * n_rows + 0.4), squeeze=False)
+    rows = [(family["family"], row, i == 0) for family in data["families"] for i, row in enumerate(family["rows"])]
+    positions, y, previous = [], 0.0, None
+    for family, _, _ in rows:
+        if previous is not None and family != previous:
+            y += 0.6  # a gap between families
+        positions.append(y)
+        y += 1.0
+        previous = family
+    fig, axes = plt.subplots(1, 2, figsize=(12, 0.27 * y + 1.6), sharey=True)
     colours = plt.get_cmap("tab10")
-    for r, family in enumerate(data["families"]):
-        labels = [row["label"] for row in family["rows"]]
-        for c, (key, name, _) in enumerate(METRICS):
-            ax = axes[r, c]
-            values = [row[key] for row in family["rows"]]
-            errors = np.nan_to_num([np.nan if row.get(f"{key}_std") is None else row[f"{key}_std"]
-                                    for row in family["rows"]])
-            ax.bar(range(len(values)), values, yerr=errors, capsize=3,
-                   color=[colours(i) for i in range(len(values))], alpha=0.85)
-            ax.set_xticks(range(len(values)))
-            ax.set_xticklabels(labels, rotation=30, ha="right", fontsize=7)
-            ax.tick_params(axis="y", labelsize=7)
-            ax.grid(axis="y", alpha=0.3)
-            if r == 0:
-                ax.set_title(name, fontsize=9)
-            if c == 0:
-                ax.set_ylabel(family["family"], fontsize=9)
-            if key == "overlap":
-                ax.set_ylim(0, 1)
-    fig.suptitle(f"Ablations on {', '.join(data['sequences'])}, mean ± std over seeds {data['seeds']}", fontsize=10)
+    sequences = data["sequences"]
+    default = data["families"][0]["rows"][0]
+    for ax, (key, name) in zip(axes, (("overlap", "mean overlap (higher is better)"),
+                                      ("cle", "centre location error, px (lower is better)"))):
+        for pos, (family, row, is_default) in zip(positions, rows):
+            ax.barh(pos, row[key], height=0.8, color="tab:blue" if is_default else "0.75", alpha=0.9)
+            for j, sequence in enumerate(sequences):
+                value = row[f"{key}_by_sequence"].get(sequence)
+                ax.plot([value], [pos], "o", ms=3, color=colours(j % 10), label=sequence if pos == 0 else None)
+        ax.axvline(default[key], color="tab:blue", ls=":", lw=1)
+        ax.set_xlabel(name, fontsize=9)
+        ax.grid(axis="x", alpha=0.3)
+        if key == "overlap":
+            ax.set_xlim(0, 1)
+        else:
+            ax.set_xscale("log")
+    axes[0].set_yticks(positions)
+    axes[0].set_yticklabels([f"{family}: {row['label']}" for family, row, _ in rows], fontsize=7)
+    axes[0].invert_yaxis()
+    axes[1].legend(fontsize=7, loc="lower right", title="per sequence", title_fontsize=7)
+    seeds = data["seeds"]
+    fig.suptitle(f"Ablations on {len(sequences)} sequences (bars: average; blue: the default tracker), "
+                 f"{'seed ' + str(seeds[0]) if len(seeds) == 1 else 'mean over seeds ' + str(seeds)}", fontsize=10)
     save_figure(fig, path, dpi=100, rect=(0, 0, 1, 1 - 0.35 / fig.get_figheight()))  # room for the suptitle
 
 
-def main(context=None) -> dict:
-    """Run (or load) every ablation, plot and write the numbers; returns the report section
-    (``title``, ``figures``, ``markdown``)."""
-    context, data, png, _ = collect_and_plot(context, __doc__, STEM, collect, plot)
+def report(context, data: dict) -> dict:
+    """Write the numbers (CSV/JSON); returns the report section (``title``, ``figures``, ``markdown``)."""
     keys = [k for k, _, _ in METRICS]
     rows = []
     for family in data["families"]:
@@ -203,8 +220,8 @@ def main(context=None) -> dict:
     text = [f"On {names}; mean ± std over seeds {data['seeds']} of the across-sequence average"
             + (f", first {context.max_frames} frames only" if context.max_frames else "")
             + ". Negative shares: fraction of negative entries among all candidates' coefficients c (within each "
-              "local dictionary) and dictionary weights w, averaged over frames. fps: tracking time only, runs in "
-              "parallel workers (compare within a family, on the same machine load)."]
+              "local dictionary) and dictionary weights w, averaged over frames. Speed: see `make bench` (runs "
+              "here share the machine, so their fps would measure its load)."]
     text += ["", "| family | configuration | " + " | ".join(name for _, name, _ in METRICS) + " |",
              "|---" * (len(METRICS) + 2) + "|"]
     for family in data["families"]:
@@ -219,8 +236,12 @@ def main(context=None) -> dict:
                 "confidence form, any motion parameter, the particle count or the template radii; its claim "
                 "(Sec. 3.3) is that the l2 regularisation keeps c and w (almost) non-negative, as the constraint "
                 "would, while having a closed-form solution.")
-    return {"title": TITLE, "figures": [png.name], "markdown": "\n".join(text)}
+    return {"title": TITLE, "figures": [f"{STEM}.png"], "markdown": "\n".join(text)}
+
+
+def main(argv=None) -> int:
+    return script_main(__name__, argv)
 
 
 if __name__ == "__main__":
-    print(main()["markdown"])
+    sys.exit(main())

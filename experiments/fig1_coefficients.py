@@ -15,12 +15,15 @@ Runs go through the shared run cache (``context.run``).
 """
 from __future__ import annotations
 
+import sys
+
 import matplotlib.pyplot as plt
 import numpy as np
 from matplotlib.patches import Rectangle
 
-from experiments.common import save_figure
-from experiments.analysis_common import Budget, budget_for, describe_params, get_context, tracker_params
+from experiments.grid import script_main
+from experiments.internals import Budget, budget_for, describe_params, tracker_params
+from experiments.tables import save_figure
 from nrmlc import io
 from nrmlc.metrics import overlaps
 from nrmlc.runner import RunSpec
@@ -69,22 +72,21 @@ def _plan(context, budget: Budget):
     """(sequence, seed, {setup name: params}, [RunSpec per setup])."""
     sequence = pick_sequence(context)
     seed = int((budget.seeds or context.seeds)[0])
-    n_frames = None if budget.max_frames is None else min(int(budget.max_frames), len(sequence))
     setups = {"no_l2": tracker_params(budget, context, coding="regularized", lam=0.0, beta=0.0),
               "l2": tracker_params(budget, context, coding="regularized", lam=1.0, beta=0.1)}
-    specs = [RunSpec(sequence=sequence, params=p, seed=seed, n_frames=n_frames, label=f"fig1 {name}")
+    specs = [RunSpec(sequence=sequence, params=p, seed=seed, n_frames=budget.max_frames, label=f"fig1 {name}")
              for name, p in setups.items()]
     return sequence, seed, setups, specs
 
 
-def runs(context, budget: Budget | None = None) -> list[RunSpec]:
+def runs(context) -> list:
     """The tracking runs :func:`main` needs (run_all schedules them in its shared grid)."""
-    return _plan(context, budget_for(context, budget, SYNTHETIC_BUDGET, REAL_BUDGET))[3]
+    return _plan(context, budget_for(context, SYNTHETIC_BUDGET, REAL_BUDGET))[3]
 
 
-def main(context=None, budget: Budget | None = None) -> dict:
-    context = get_context(context)
-    budget = budget_for(context, budget, SYNTHETIC_BUDGET, REAL_BUDGET)
+def collect(context) -> dict:
+    """The numbers and what the figure needs (the JSON, the plot's inputs, the report section)."""
+    budget = budget_for(context, SYNTHETIC_BUDGET, REAL_BUDGET)
     sequence, seed, setups, specs = _plan(context, budget)
     runs = dict(zip(setups, context.run(specs)))
 
@@ -111,21 +113,47 @@ def main(context=None, budget: Budget | None = None) -> dict:
             "share_frames_with_negative_coefficient": float((counts[1:] > 0).mean()) if len(counts) > 1 else 0.0,
             "mean_overlap_with_groundtruth": float(np.nanmean(iou)) if np.isfinite(iou).any() else None,
         }
-    io.write_json(context.output(STEM, ".json"), result)
-    _plot(context, sequence, runs, frame, result)
-    return {"title": f"Fig. 1: coding coefficients without / with the l2 term ({sequence.name})",
-            "figures": [f"{STEM}.png"], "markdown": _markdown(result)}
+    section = {"title": f"Fig. 1: coding coefficients without / with the l2 term ({sequence.name})",
+               "figures": [f"{STEM}.png"], "markdown": _markdown(result)}
+    return {"result": result, "plot": (sequence, runs, frame, result), "section": section}
 
 
-def _plot(context, sequence, runs, frame, result) -> None:
-    fig = plt.figure(figsize=(13, 4))
+def label_groups(indices, values, span: float) -> list[tuple[float, float, str]]:
+    """One label per cluster of nearby templates, so that labels never overlap.
+
+    Parameters
+    ----------
+    indices : sorted 0-based template indices with a non-zero code
+    values : their codes
+    span : indices closer than this share a label
+
+    Returns
+    -------
+    list of (x, y, text): 1-based x of the cluster's middle, the cluster's code of largest
+    magnitude, and ``#i`` names (``#i-#j (n)`` for more than three).
+    """
+    groups: list[list[int]] = []
+    for position, index in enumerate(indices):
+        if groups and index - indices[groups[-1][-1]] < span:
+            groups[-1].append(position)
+        else:
+            groups.append([position])
+    out = []
+    for group in groups:
+        names = [int(indices[p]) + 1 for p in group]
+        peak = max(group, key=lambda p: abs(values[p]))
+        text = ", ".join(f"#{n}" for n in names) if len(names) <= 3 else f"#{names[0]}-#{names[-1]} ({len(names)})"
+        out.append((float(np.mean(names)), float(values[peak]), text))
+    return out
+
+
+def _plot(path, sequence, runs, frame, result) -> None:
+    fig = plt.figure(figsize=(13, 4.2))
     grid = fig.add_gridspec(1, 3, width_ratios=[1.2, 1.2, 1])
     colours = {"no_l2": "green", "l2": "red"}
     labels = {"no_l2": r"no $\ell_2$ ($\lambda=\beta=0$)", "l2": r"$\lambda=1$, $\beta=0.1$"}
-    share = None
     for column, (name, run) in enumerate(runs.items()):
-        ax = fig.add_subplot(grid[0, column], sharey=share)
-        share = share or ax
+        ax = fig.add_subplot(grid[0, column])  # own y scale: the codes differ by an order of magnitude
         d, n_pos = dense_code(run.diagnostics, frame)
         index = np.arange(1, len(d) + 1)
         used = np.abs(d) > 1e-6
@@ -133,9 +161,13 @@ def _plot(context, sequence, runs, frame, result) -> None:
         ax.axvspan(0.5, n_pos + 0.5, color="tab:blue", alpha=0.06, label=f"positive #1-#{n_pos}")
         ax.vlines(index[used], 0, d[used], color=colours[name], lw=2)
         ax.plot(index[used], d[used], "o", color=colours[name], ms=4)
-        for i in np.flatnonzero(used):
-            ax.annotate(f"#{i + 1}", (i + 1, d[i]), fontsize=6, xytext=(2, 3 if d[i] >= 0 else -9),
-                        textcoords="offset points")
+        picked = np.flatnonzero(used)
+        for x, y, text in label_groups(picked, d[picked], span=len(d) / 12):
+            ax.annotate(text, (x, y), fontsize=6, ha="center", va="bottom" if y >= 0 else "top",
+                        xytext=(0, 3 if y >= 0 else -3), textcoords="offset points")
+        low, high = min(d.min(), 0.0), max(d.max(), 0.0)
+        pad = 0.35 * (high - low or 1.0)
+        ax.set_ylim(low - (pad if low < 0 else 0.05 * pad), high + pad)
         ax.set_xlim(0.5, len(d) + 0.5)
         ax.set_xlabel(f"template index (#1-#{n_pos} positive, #{n_pos + 1}-#{len(d)} negative)")
         ax.set_ylabel("coefficient $d$")
@@ -163,7 +195,7 @@ def _plot(context, sequence, runs, frame, result) -> None:
     ax.set_ylim(min(bottom + margin, height - 0.5), max(top - margin, -0.5))
     ax.set_title(f"{sequence.name} #{frame + 1} (green: no l2, red: l2, yellow: GT)", fontsize=8)
     ax.axis("off")
-    save_figure(fig, context.output(STEM, ".png"), dpi=120)
+    save_figure(fig, path, dpi=120)
 
 
 def _markdown(result) -> str:
@@ -204,5 +236,19 @@ def _markdown(result) -> str:
     return "\n".join(lines) + "\n"
 
 
+def plot(data: dict, path) -> None:
+    _plot(path, *data["plot"])
+
+
+def report(context, data: dict) -> dict:
+    """Write the numbers (JSON); returns the report section."""
+    io.write_json(context.output(STEM, ".json"), data["result"])
+    return data["section"]
+
+
+def main(argv=None) -> int:
+    return script_main(__name__, argv)
+
+
 if __name__ == "__main__":
-    main()
+    sys.exit(main())

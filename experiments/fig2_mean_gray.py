@@ -12,13 +12,14 @@ Data: the same recorded frames as :mod:`experiments.stats_nonnegativity`
 """
 from __future__ import annotations
 
+import sys
+
 import matplotlib.pyplot as plt
 import numpy as np
 
-from experiments.common import save_figure
-from experiments.analysis_common import (
-    Budget, budget_for, collect_many, collections_for, describe_params, get_context, limit, tracker_params,
-)
+from experiments.grid import script_main
+from experiments.internals import budget_for, collect_many, collections_for, describe_params, limit, tracker_params
+from experiments.tables import save_figure
 from experiments.stats_nonnegativity import REAL_BUDGET, SYNTHETIC_BUDGET
 from nrmlc import io
 
@@ -34,15 +35,15 @@ def _summary(values: np.ndarray) -> dict:
             "p99": float(np.percentile(values, 99)), "max": float(values.max())}
 
 
-def runs(context, budget: Budget | None = None) -> list:
+def runs(context) -> list:
     """The recorded internals this script reads (those of the statistics script)."""
-    budget = budget_for(context, budget, SYNTHETIC_BUDGET, REAL_BUDGET)
+    budget = budget_for(context, SYNTHETIC_BUDGET, REAL_BUDGET)
     return collections_for(context, limit(context.sequences(), budget), budget)
 
 
-def main(context=None, budget: Budget | None = None) -> dict:
-    context = get_context(context)
-    budget = budget_for(context, budget, SYNTHETIC_BUDGET, REAL_BUDGET)
+def collect(context) -> dict:
+    """The numbers and what the figure needs (the JSON, the plot's inputs, the report section)."""
+    budget = budget_for(context, SYNTHETIC_BUDGET, REAL_BUDGET)
     sequences = limit(context.sequences(), budget)
     collections = collect_many(context, sequences, budget)
 
@@ -62,13 +63,12 @@ def main(context=None, budget: Budget | None = None) -> dict:
     result = {"data": {"label": context.data_label, "sequences": [s.name for s in sequences], "seed": 0,
                        "params": describe_params(tracker_params(budget, context)), "budget": budget.__dict__},
               "bound_unit_norm_nonnegative": BOUND, "paper": PAPER, "overall": overall, "per_sequence": per_sequence}
-    io.write_json(context.output(STEM, ".json"), result)
-    _plot(context, collections, overall)
-    return {"title": "Fig. 2: mean gray value of templates and candidates", "figures": [f"{STEM}.png"],
-            "markdown": _markdown(result, budget)}
+    section = {"title": "Fig. 2: mean gray value of templates and candidates", "figures": [f"{STEM}.png"],
+               "markdown": _markdown(result, budget)}
+    return {"result": result, "plot": (collections, overall), "section": section}
 
 
-def _plot(context, collections, overall) -> None:
+def _plot(path, collections, overall) -> None:
     fig, axes = plt.subplots(1, 2, figsize=(11, 4), sharey=True)
     ax = axes[0]
     for c in collections:
@@ -98,7 +98,7 @@ def _plot(context, collections, overall) -> None:
         ax.axhline(BOUND, color="k", ls="--", lw=1, label="1/32: max for unit norm, >= 0")
         ax.legend(fontsize=7, loc="lower right")
         ax.grid(alpha=0.3)
-    save_figure(fig, context.output(STEM, ".png"), dpi=120)
+    save_figure(fig, path, dpi=120)
 
 
 def _markdown(result, budget) -> str:
@@ -136,5 +136,19 @@ def _markdown(result, budget) -> str:
     return "\n".join(lines) + "\n"
 
 
+def plot(data: dict, path) -> None:
+    _plot(path, *data["plot"])
+
+
+def report(context, data: dict) -> dict:
+    """Write the numbers (JSON); returns the report section."""
+    io.write_json(context.output(STEM, ".json"), data["result"])
+    return data["section"]
+
+
+def main(argv=None) -> int:
+    return script_main(__name__, argv)
+
+
 if __name__ == "__main__":
-    main()
+    sys.exit(main())

@@ -1,6 +1,6 @@
 """Fig. 3: representative frames with the boxes of NRMLC, the ground truth and the peers.
 
-One row per given sequence (the paper's first), four evenly spaced frames per
+One row per given paper sequence (the synthetic ones without data), four evenly spaced frames per
 row (frame 1 is left out: every tracker starts at the ground truth there).
 Boxes: NRMLC seed 0 (the first main seed), the ground truth, OpenCV's
 trackers run live, and the shipped peer results that fit the sequence.
@@ -12,10 +12,14 @@ numbers and every box drawn).
 """
 from __future__ import annotations
 
+import sys
+
 import numpy as np
 
 from experiments import peers
-from experiments.common import clean, collect_and_plot, paper_name, save_figure
+from experiments.grid import script_main
+from experiments.sequence_sets import paper_name
+from experiments.tables import clean, save_figure
 from nrmlc import io
 
 STEM = "fig3_qualitative"
@@ -37,14 +41,13 @@ def _sequences(context) -> list:
     return paper_seqs or others  # the paper's sequences; the synthetic suite without data
 
 
-def runs(context) -> list:
-    """NRMLC seed 0 (the first main seed) on every given sequence: already part of Tables I/II."""
+def _specs(context) -> list:
     return context.specs(_sequences(context), seeds=context.seeds[:1], label="fig3")
 
 
-def peer_runs(context) -> list:
-    """The live OpenCV runs drawn (the same as the tables')."""
-    return peers.live_specs(context, _sequences(context))
+def runs(context) -> list:
+    """NRMLC seed 0 (the first main seed; Tables I/II's run) and the live OpenCV runs (the tables')."""
+    return _specs(context) + peers.live_specs(context, _sequences(context))
 
 
 def frame_indices(n_frames: int, count: int = FRAMES_PER_SEQUENCE) -> list[int]:
@@ -58,7 +61,7 @@ def frame_indices(n_frames: int, count: int = FRAMES_PER_SEQUENCE) -> list[int]:
 def collect(context) -> dict:
     """Boxes of every tracker at the chosen frames of each sequence."""
     sequences = _sequences(context)
-    results = context.run(runs(context))
+    results = context.run(_specs(context))
     live = peers.live_results(context, sequences)
     shipped, notes = peers.shipped_for(context, sequences)
     rows = []
@@ -120,10 +123,8 @@ def plot(data: dict, path) -> None:
     save_figure(fig, path, dpi=60, rect=(0, 0, 1, 1 - 0.5 / fig.get_figheight()))
 
 
-def main(context=None) -> dict:
-    """Draw the grid and write the boxes behind it; returns the report section
-    (``title``, ``figures``, ``markdown``)."""
-    context, data, png, _ = collect_and_plot(context, __doc__, STEM, collect, plot)
+def report(context, data: dict) -> dict:
+    """Write the numbers (CSV/JSON); returns the report section (``title``, ``figures``, ``markdown``)."""
     io.write_json(context.output(STEM, ".json"), clean({
         "seed": data["seed"],
         "sequences": [{"sequence": row["sequence"].name, "frames_1_based": [f + 1 for f in row["frames"]],
@@ -143,8 +144,12 @@ def main(context=None) -> dict:
                 f"{', '.join(in_paper) if in_paper else 'none'} {'is' if len(in_paper) == 1 else 'are'} given "
                 f"here{'' if not absent else ' (' + ', '.join(absent) + ' are not in the data)'}; "
                 "the other given sequences are shown as well.")
-    return {"title": TITLE, "figures": [png.name], "markdown": "\n".join(text)}
+    return {"title": TITLE, "figures": [f"{STEM}.png"], "markdown": "\n".join(text)}
+
+
+def main(argv=None) -> int:
+    return script_main(__name__, argv)
 
 
 if __name__ == "__main__":
-    print(main()["markdown"])
+    sys.exit(main())

@@ -13,10 +13,14 @@ shown as mean ± std over ``context.sweep_seeds``. Outputs
 """
 from __future__ import annotations
 
+import sys
+
 import numpy as np
 
 from experiments import paper_numbers as paper
-from experiments.common import clean, collect_and_plot, fmt, mean_std, paper_name, save_figure, score, write_csv
+from experiments.grid import score, script_main
+from experiments.sequence_sets import paper_name
+from experiments.tables import clean, fmt, mean_std, save_figure, write_csv
 from nrmlc import io
 
 STEM = "fig4_lambda_sweep"
@@ -94,10 +98,8 @@ def plot(data: dict, path) -> None:
     save_figure(fig, path, dpi=120)
 
 
-def main(context=None) -> dict:
-    """Run (or load) the sweep, plot it and write its numbers; returns the report section
-    (``title``, ``figures``, ``markdown``)."""
-    context, data, png, _ = collect_and_plot(context, __doc__, STEM, collect, plot)
+def report(context, data: dict) -> dict:
+    """Write the numbers (CSV/JSON); returns the report section (``title``, ``figures``, ``markdown``)."""
     rows = []
     for p in data["points"]:
         rows.append([p["label"], p["coding"], p["lam"], p["beta"], "average", p["overlap"], p["overlap_std"]])
@@ -127,8 +129,12 @@ def main(context=None) -> dict:
     text.append(f"Measured peak at λ = {best['lam']:g} ({best['overlap']:.3f}); paper: peak at λ = 1. "
                 f"λ = β = 0 (red): {plain['overlap']:.3f} here, {paper.FIG4_NO_REGULARISATION_OVERLAP} in the paper. "
                 "The paper gives the curve only as a figure, so only these two numbers can be compared.")
-    return {"title": TITLE, "figures": [png.name], "markdown": "\n".join(text)}
+    return {"title": TITLE, "figures": [f"{STEM}.png"], "markdown": "\n".join(text)}
+
+
+def main(argv=None) -> int:
+    return script_main(__name__, argv)
 
 
 if __name__ == "__main__":
-    print(main()["markdown"])
+    sys.exit(main())

@@ -10,12 +10,15 @@ frames vs the other frames. Runs go through the shared run cache.
 """
 from __future__ import annotations
 
+import sys
+
 import matplotlib.pyplot as plt
 import numpy as np
 from matplotlib.patches import Patch, Rectangle
 
-from experiments.common import save_figure
-from experiments.analysis_common import Budget, budget_for, describe_params, get_context, tracker_params
+from experiments.grid import script_main
+from experiments.internals import Budget, budget_for, describe_params, tracker_params
+from experiments.tables import save_figure
 from nrmlc import io
 from nrmlc.runner import RunSpec
 
@@ -100,27 +103,24 @@ def _plan(context, budget: Budget) -> dict:
     params = tracker_params(budget, context)
     seeds = tuple(int(s) for s in (budget.seeds or context.seeds))
     sequence, is_paper = pick_sequence(context)
-
-    def cap(seq):
-        return None if budget.max_frames is None else min(int(budget.max_frames), len(seq))
-
-    main_spec = RunSpec(sequence=sequence, params=params, seed=seeds[0], n_frames=cap(sequence), label="occlusion")
+    main_spec = RunSpec(sequence=sequence, params=params, seed=seeds[0], n_frames=budget.max_frames,
+                        label="occlusion")
     synthetic = synthetic_sequences(context)
     synthetic_seeds = seeds if context.is_synthetic else seeds[:1]
-    flag_specs = [RunSpec(sequence=s, params=params, seed=seed, n_frames=cap(s), label="occlusion flags")
+    flag_specs = [RunSpec(sequence=s, params=params, seed=seed, n_frames=budget.max_frames, label="occlusion flags")
                   for s in synthetic for seed in synthetic_seeds]
     return dict(params=params, seeds=seeds, sequence=sequence, is_paper=is_paper, synthetic=synthetic,
                 synthetic_seeds=synthetic_seeds, specs=[main_spec] + flag_specs)
 
 
-def runs(context, budget: Budget | None = None) -> list[RunSpec]:
+def runs(context) -> list:
     """The tracking runs :func:`main` needs (run_all schedules them in its shared grid)."""
-    return _plan(context, budget_for(context, budget, SYNTHETIC_BUDGET, REAL_BUDGET))["specs"]
+    return _plan(context, budget_for(context, SYNTHETIC_BUDGET, REAL_BUDGET))["specs"]
 
 
-def main(context=None, budget: Budget | None = None) -> dict:
-    context = get_context(context)
-    budget = budget_for(context, budget, SYNTHETIC_BUDGET, REAL_BUDGET)
+def collect(context) -> dict:
+    """The numbers and what the figure needs (the JSON, the plot's inputs, the report section)."""
+    budget = budget_for(context, SYNTHETIC_BUDGET, REAL_BUDGET)
     plan = _plan(context, budget)
     params, seeds, sequence, is_paper = plan["params"], plan["seeds"], plan["sequence"], plan["is_paper"]
     synthetic, synthetic_seeds = plan["synthetic"], plan["synthetic_seeds"]
@@ -173,13 +173,13 @@ def main(context=None, budget: Budget | None = None) -> dict:
                       "max_len_neg_frame": int(np.argmax(lengths[1:]) + 1) if n > 1 else 0},
         "synthetic_flag_statistics": {**stats, "seeds": list(synthetic_seeds)},
     }
-    io.write_json(context.output(STEM, ".json"), result)
-    _plot(context, sequence, run, frame, d, n_pos, lengths, flags, truth, params.occlusion_max_negative)
     title = f"Occlusion detection: template contributions and LEN(neg*) ({sequence.name})"
-    return {"title": title, "figures": [f"{STEM}.png"], "markdown": _markdown(result, title)}
+    section = {"title": title, "figures": [f"{STEM}.png"], "markdown": _markdown(result, title)}
+    return {"result": result, "section": section,
+            "plot": (sequence, run, frame, d, n_pos, lengths, flags, truth, params.occlusion_max_negative)}
 
 
-def _plot(context, sequence, run, frame, d, n_pos, lengths, flags, truth, threshold) -> None:
+def _plot(path, sequence, run, frame, d, n_pos, lengths, flags, truth, threshold) -> None:
     fig = plt.figure(figsize=(12, 7))
     grid = fig.add_gridspec(2, 3, height_ratios=[1.1, 1])
     ax = fig.add_subplot(grid[0, 0])
@@ -229,7 +229,7 @@ def _plot(context, sequence, run, frame, d, n_pos, lengths, flags, truth, thresh
     ax.set_ylim(-0.3, max(float(lengths[1:].max()) if len(lengths) > 1 else 0.0, threshold + 1) * 1.4 + 0.5)
     ax.legend(fontsize=7, ncol=5, loc="upper left")
     ax.grid(alpha=0.3)
-    save_figure(fig, context.output(STEM, ".png"), dpi=120)
+    save_figure(fig, path, dpi=120)
 
 
 def _markdown(result, title) -> str:
@@ -269,5 +269,19 @@ def _markdown(result, title) -> str:
     return "\n".join(lines) + "\n"
 
 
+def plot(data: dict, path) -> None:
+    _plot(path, *data["plot"])
+
+
+def report(context, data: dict) -> dict:
+    """Write the numbers (JSON); returns the report section."""
+    io.write_json(context.output(STEM, ".json"), data["result"])
+    return data["section"]
+
+
+def main(argv=None) -> int:
+    return script_main(__name__, argv)
+
+
 if __name__ == "__main__":
-    main()
+    sys.exit(main())

@@ -7,7 +7,7 @@ with them, marked as the paper's.
 
 Sequence names are the paper's (``Carscale`` is written ``CarScale`` as in
 OTB, ``Faceocc1`` as ``FaceOcc1``, ...), matching
-:data:`experiments.common.PAPER_SEQUENCES`.
+:func:`experiments.sequence_sets.paper_name`.
 """
 from __future__ import annotations
 

@@ -34,7 +34,6 @@ from typing import ClassVar
 import numpy as np
 
 from experiments.sequence_sets import PAPER_NAME_OF, paper_name
-from nrmlc import io
 from nrmlc.runner import RunCache, frames_tracked, sequence_identity
 
 #: Bump when the live runner's behaviour changes (it is part of every key).

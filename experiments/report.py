@@ -9,7 +9,8 @@ from __future__ import annotations
 import datetime
 import platform
 
-from experiments.common import params_differences, paper_name
+from experiments.grid import params_differences
+from experiments.sequence_sets import paper_name
 from nrmlc import io
 from nrmlc.runner import code_version
 
@@ -65,7 +66,7 @@ def write_report(context, sections: list[dict], notes: list[str] | None = None, 
 
     Parameters
     ----------
-    context : experiments.common.Context
+    context : experiments.grid.Context
     sections : list of dict
         Each with ``title``, ``figures`` (PNG names in the figures folder) and ``markdown``.
     notes : list of str, optional

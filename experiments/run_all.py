@@ -11,15 +11,16 @@ folder; the committed real-data results are written with ``--out figures``.
 
 Steps:
 
-1. build the :class:`~experiments.common.Context` (data, seeds, run cache);
-2. collect the jobs of every script (``runs(context)``: tracking runs and
-   recorded internals; ``peer_runs(context)``: live OpenCV runs), print the
-   size of the grid per script (``--dry-run`` stops here), and compute the
-   missing ones in one pool of warmed-up workers (cached runs are skipped, so
-   a rerun or an interrupted run costs only what is missing);
-3. call each script's ``main(context)`` in the paper's order (they read the
-   cached results); one that fails is reported (traceback on stderr, a note
-   in the report) and the others still run;
+1. build the :class:`~experiments.grid.Context` (data, seeds, run cache);
+2. collect the jobs of every script (``runs(context)``: tracking runs, live
+   OpenCV runs, recorded internals), print the size of the grid per script
+   (``--dry-run`` stops here), and compute the missing ones in one pool of
+   warmed-up workers (cached runs are skipped, so a rerun or an interrupted
+   run costs only what is missing);
+3. run each script (:func:`experiments.grid.run_script`: ``collect``, ``plot``,
+   ``report``) in the paper's order, from the cached results; one that fails
+   is reported (traceback on stderr, a note in the report) and the others
+   still run;
 4. write ``REPORT.md``; exit non-zero if any script failed.
 """
 from __future__ import annotations
@@ -32,7 +33,7 @@ import time
 import traceback
 
 from experiments import report
-from experiments.common import add_arguments, context_from_namespace
+from experiments.grid import add_arguments, context_from_namespace, run_script
 from nrmlc.errors import NrmlcError
 
 #: Every script, in the paper's order.
@@ -76,14 +77,11 @@ def import_scripts(selected, failures: list) -> list:
 
 
 def collect_jobs(context, modules, failures: list) -> dict:
-    """{script: its jobs} (``runs`` and ``peer_runs``) for every script."""
+    """{script: its jobs (``runs(context)``)} for every script."""
     jobs = {}
     for module in modules:
         try:
-            found = list(module.runs(context)) if hasattr(module, "runs") else []
-            if hasattr(module, "peer_runs"):
-                found += list(module.peer_runs(context))
-            jobs[_short(module.__name__)] = found
+            jobs[_short(module.__name__)] = list(module.runs(context))
         except Exception as exc:
             traceback.print_exc()
             failures.append((_short(module.__name__), f"runs() failed: {exc!r}"))
@@ -142,23 +140,23 @@ def run_grid(context, union: list) -> None:
 
 
 def run_scripts(context, modules, failures: list) -> list[dict]:
-    """Call every script's ``main(context)``; a failure becomes a section saying so."""
+    """Run every script from the cache; a failure becomes a section saying so."""
     sections = []
     for module in modules:
         name = _short(module.__name__)
         start = time.perf_counter()
         print(f"[run_all] {name} ...", file=sys.stderr, flush=True)
         try:
-            section = module.main(context)
+            section = run_script(module, context)
             if not isinstance(section, dict) or "title" not in section:
-                raise TypeError(f"main() returned {type(section).__name__}, not a dict with a title")
+                raise TypeError(f"report() returned {type(section).__name__}, not a dict with a title")
             section = {"title": section["title"], "figures": list(section.get("figures", [])),
                        "markdown": section.get("markdown", "")}
         except Exception as exc:
             traceback.print_exc()
             failures.append((name, repr(exc)))
             section = {"title": f"{name}: FAILED", "figures": [],
-                       "markdown": f"`{name}.main` raised `{exc!r}`; see the log for the traceback."}
+                       "markdown": f"`{name}` raised `{exc!r}`; see the log for the traceback."}
         print(f"[run_all] {name} done in {time.perf_counter() - start:.1f} s", file=sys.stderr, flush=True)
         sections.append(section)
     return sections

@@ -14,15 +14,18 @@ with beta = 0.1 and beta = 0), and we report:
 """
 from __future__ import annotations
 
+import sys
+
 import matplotlib.pyplot as plt
 import numpy as np
 
-from experiments.common import save_figure
-from experiments.analysis_common import (
-    LAMBDAS, PAPER_A_RANGE, PAPER_GRAM_BOUND, Budget, budget_for, collect_many, collections_for, dictionary_weights, fmt,
+from experiments.grid import script_main
+from experiments.internals import (
+    LAMBDAS, PAPER_A_RANGE, PAPER_GRAM_BOUND, Budget, budget_for, collect_many, collections_for,
+    describe_params, dictionary_weights, limit, max_offdiag_row_sum, pooled, strictly_dd, sum_to_one_codes,
     tracker_params,
-    describe_params, get_context, limit, max_offdiag_row_sum, percentiles, pooled, strictly_dd, sum_to_one_codes,
 )
+from experiments.tables import fmt, percentiles, save_figure, write_csv
 from nrmlc import io
 
 STEM = "stats_nonnegativity"
@@ -105,15 +108,15 @@ def tracker_agreement(collections: list[dict], grams: np.ndarray, p) -> dict:
     return {"lambda": p.lam, "beta": p.beta, "max_abs_diff_c": diff_c, "max_abs_diff_w": float(np.abs(w - weights).max())}
 
 
-def runs(context, budget: Budget | None = None) -> list:
+def runs(context) -> list:
     """The recorded internals this script reads (one collection per given sequence)."""
-    budget = budget_for(context, budget, SYNTHETIC_BUDGET, REAL_BUDGET)
+    budget = budget_for(context, SYNTHETIC_BUDGET, REAL_BUDGET)
     return collections_for(context, limit(context.sequences(), budget), budget)
 
 
-def main(context=None, budget: Budget | None = None) -> dict:
-    context = get_context(context)
-    budget = budget_for(context, budget, SYNTHETIC_BUDGET, REAL_BUDGET)
+def collect(context) -> dict:
+    """The numbers and what the figure needs (the JSON, the plot's inputs, the report section)."""
+    budget = budget_for(context, SYNTHETIC_BUDGET, REAL_BUDGET)
     sequences = limit(context.sequences(), budget)
     params = tracker_params(budget, context)
     collections = collect_many(context, sequences, budget, params=params)
@@ -127,17 +130,12 @@ def main(context=None, budget: Budget | None = None) -> dict:
                        "params": describe_params(params),
                        "budget": budget.__dict__, "frames": frames, "n_candidates": int(len(grams))},
               "by_lambda": rows, "elements": ranges, "tracker_agreement": agreement}
-    io.write_json(context.output(STEM, ".json"), result)
-    columns = list(rows[0])
-    csv = ",".join(columns) + "\n" + "\n".join(",".join(f"{r[c]:.6g}" for c in columns) for r in rows) + "\n"
-    io.write_text(context.output(STEM, ".csv"), csv)
-    _plot(context, rows, collections, grams)
-    markdown = _markdown(result, budget)
-    return {"title": "Non-negativity of the regularised codes vs lambda", "figures": [f"{STEM}.png"],
-            "markdown": markdown}
+    section = {"title": "Non-negativity of the regularised codes vs lambda", "figures": [f"{STEM}.png"],
+               "markdown": _markdown(result, budget)}
+    return {"result": result, "plot": (rows, collections, grams), "section": section}
 
 
-def _plot(context, rows, collections, grams) -> None:
+def _plot(path, rows, collections, grams) -> None:
     lams = [r["lambda"] for r in rows]
     fig, axes = plt.subplots(2, 2, figsize=(10, 7))
     ax = axes[0, 0]
@@ -175,7 +173,7 @@ def _plot(context, rows, collections, grams) -> None:
     ax.set_xlabel("$(A^TA)_{ij}$")
     ax.set_yscale("log")
     ax.legend(fontsize=7)
-    save_figure(fig, context.output(STEM, ".png"), dpi=120)
+    save_figure(fig, path, dpi=120)
 
 
 def _at(rows, lam):
@@ -251,5 +249,21 @@ def _markdown(result, budget) -> str:
     return "\n".join(lines) + "\n"
 
 
+def plot(data: dict, path) -> None:
+    _plot(path, *data["plot"])
+
+
+def report(context, data: dict) -> dict:
+    """Write the numbers (JSON); returns the report section."""
+    io.write_json(context.output(STEM, ".json"), data["result"])
+    rows = data["result"]["by_lambda"]
+    write_csv(context.output(STEM, ".csv"), list(rows[0]), [list(r.values()) for r in rows])
+    return data["section"]
+
+
+def main(argv=None) -> int:
+    return script_main(__name__, argv)
+
+
 if __name__ == "__main__":
-    main()
+    sys.exit(main())

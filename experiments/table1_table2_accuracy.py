@@ -20,12 +20,15 @@ curves; legend with AUC and precision at 20 px).
 from __future__ import annotations
 
 import math
+import sys
 
 import numpy as np
 
 from experiments import paper_numbers as paper
 from experiments import peers
-from experiments.common import clean, collect_and_plot, fmt, mean_std, paper_name, save_figure, score, write_csv
+from experiments.grid import script_main, score
+from experiments.sequence_sets import paper_name
+from experiments.tables import clean, fmt, mean_std, save_figure, write_csv
 from nrmlc import io
 from nrmlc.metrics import PRECISION_THRESHOLDS, SUCCESS_THRESHOLDS
 
@@ -38,14 +41,15 @@ DAGGER = "†"
 MIXED = "‡"
 
 
+def _specs(context) -> list:
+    paper_seqs, other_seqs = context.ordered_sequences()
+    return context.specs(paper_seqs + other_seqs, seeds=context.seeds, label="table")
+
+
 def runs(context) -> list:
-    """NRMLC with the base parameters on every given sequence, every main seed."""
-    return context.specs(context.sequences(), seeds=context.seeds, label="table")
-
-
-def peer_runs(context) -> list:
-    """The live OpenCV runs the tables need (every available tracker on every given sequence)."""
-    return peers.live_specs(context, context.sequences())
+    """NRMLC with the base parameters on every given sequence, every main seed, and the live
+    OpenCV runs (every available tracker on every given sequence)."""
+    return _specs(context) + peers.live_specs(context, context.sequences())
 
 
 def _columns(live: list[str]) -> list[str]:
@@ -75,7 +79,7 @@ def collect(context) -> dict:
     """Every number of the tables: ``cells[sequence][column]``, per-seed averages, fps, notes."""
     paper_seqs, other_seqs = context.ordered_sequences()
     sequences = paper_seqs + other_seqs
-    specs = context.specs(sequences, seeds=context.seeds, label="table")
+    specs = _specs(context)
     results = context.run(specs)
     live_names = peers.live_trackers()
     live = peers.live_results(context, sequences)
@@ -129,12 +133,14 @@ def collect(context) -> dict:
         label = "synthetic sequences" if context.is_synthetic else "other sequences (not in the paper)"
         blocks.append(("other", label, other_seqs))
     averages = {key: _averages(cells, per_seed, seqs, columns) for key, _, seqs in blocks}
-    return {"columns": columns, "live": live_names, "cells": cells, "per_seed": per_seed, "fps": fps,
+    data = {"columns": columns, "live": live_names, "cells": cells, "per_seed": per_seed, "fps": fps,
             "blocks": [(key, label, [s.name for s in seqs]) for key, label, seqs in blocks],
             "averages": averages, "notes": notes, "paper_names": {s.name: paper_name(s.name) for s in sequences},
             "seeds": list(context.seeds),
             "frames": {s.name: context.n_frames(s) for s in sequences},
             "grid_frames": sum(s.frames() for s in specs), "max_frames": context.max_frames}
+    data["curves"] = _panels(data)
+    return data
 
 
 def _averages(cells, per_seed, sequences, columns) -> dict:
@@ -228,24 +234,31 @@ def _curves(data: dict, names: list[str], columns: list[str]) -> dict:
     return curves
 
 
-def plot(data: dict, path) -> dict:
+def _panels(data: dict) -> dict:
+    """{panel label: (sequence names, curves)}: all given sequences with NRMLC and the live
+    trackers, and the paper's given sequences with every tracker that has a value there."""
+    all_names = [n for _, _, names in data["blocks"] for n in names]
+    live_cols = [peers.live_label(n) for n in data["live"]]
+    panels = {"all given sequences": (all_names, _curves(data, all_names, [OURS] + live_cols))}
+    paper_names = next((names for key, _, names in data["blocks"] if key == "paper"), [])
+    if paper_names:
+        panels["the paper's given sequences"] = (
+            paper_names, _curves(data, paper_names, [OURS] + live_cols + list(paper.PEERS)))
+    return panels
+
+
+def plot(data: dict, path) -> None:
     """Success and precision plots: all given sequences (top), the paper's given sequences (bottom)."""
     import matplotlib.pyplot as plt
 
-    all_names = [n for _, _, names in data["blocks"] for n in names]
     live_cols = [peers.live_label(n) for n in data["live"]]
-    panels = [("all given sequences", all_names, [OURS] + live_cols)]
-    paper_names = next((names for key, _, names in data["blocks"] if key == "paper"), [])
-    if paper_names:
-        panels.append(("the paper's given sequences", paper_names, [OURS] + live_cols + list(paper.PEERS)))
+    columns = [OURS] + live_cols + list(paper.PEERS)
+    panels = data["curves"]
     fig, axes = plt.subplots(len(panels), 2, figsize=(11, 4.6 * len(panels)), squeeze=False)
     colours = plt.get_cmap("tab10")
-    out = {}
-    for row, (label, names, columns) in enumerate(panels):
-        curves = _curves(data, names, columns)
-        out[label] = curves
+    for row, (label, (names, curves)) in enumerate(panels.items()):
         order = sorted(curves, key=lambda c: -curves[c]["auc"])
-        for i, column in enumerate(order):
+        for column in order:
             curve = curves[column]
             style = dict(color=colours(columns.index(column) % 10), lw=2.4 if column == OURS else 1.5,
                          ls="-" if column == OURS or column in live_cols else "--")
@@ -262,7 +275,6 @@ def plot(data: dict, path) -> dict:
             ax.grid(alpha=0.3)
             ax.legend(fontsize=7, loc="lower left" if ax is axes[row, 0] else "lower right")
     save_figure(fig, path, dpi=110)
-    return out
 
 
 def _csv_rows(data: dict) -> list:
@@ -286,7 +298,8 @@ def _csv_rows(data: dict) -> list:
     return rows
 
 
-def _json(data: dict, curves: dict) -> dict:
+def _json(data: dict) -> dict:
+    curves = {label: cs for label, (_, cs) in data["curves"].items()}
     cells = {n: {c: {k: v for k, v in cell.items() if k not in ("success", "precision")} for c, cell in row.items()}
              for n, row in data["cells"].items()}
     return clean({"title": TITLE, "seeds": data["seeds"], "frames": data["frames"], "columns": data["columns"],
@@ -301,14 +314,13 @@ def _json(data: dict, curves: dict) -> dict:
                             "overlap_average": paper.OVERLAP_AVERAGE, "fps": paper.FPS}})
 
 
-def main(context=None) -> dict:
-    """Compute (or load) the runs, write the tables, the plots and their numbers; returns the report section
-    (``title``, ``figures``, ``markdown``)."""
-    context, data, png, curves = collect_and_plot(context, __doc__, STEM, collect, plot)
+def report(context, data: dict) -> dict:
+    """Write the tables' numbers (CSV, JSON); returns the report section."""
+    curves = {label: cs for label, (_, cs) in data["curves"].items()}
     write_csv(context.output(STEM, ".csv"),
               ["block", "sequence", "paper_name", "tracker", "source", "file", "cle", "cle_std", "overlap",
                "overlap_std", "success_auc", "precision_20", "n_runs", "n_frames", "fps"], _csv_rows(data))
-    io.write_json(context.output(STEM, ".json"), _json(data, curves))
+    io.write_json(context.output(STEM, ".json"), _json(data))
 
     names = ", ".join(f"{n} ({data['frames'][n]} frames)" for _, _, ns in data["blocks"] for n in ns)
     paper_block = next((names_ for key, _, names_ in data["blocks"] if key == "paper"), [])
@@ -346,8 +358,12 @@ def main(context=None) -> dict:
                             + ("" if len(v["sequences"]) == v["of"] else f" ({len(v['sequences'])}/{v['of']} seq.)")
                             for c, v in sorted(cs.items(), key=lambda kv: -kv[1]["auc"]))
         text.append(f"Success/precision over {label}: {summary}.")
-    return {"title": TITLE, "figures": [png.name], "markdown": "\n".join(text)}
+    return {"title": TITLE, "figures": [f"{STEM}.png"], "markdown": "\n".join(text)}
+
+
+def main(argv=None) -> int:
+    return script_main(__name__, argv)
 
 
 if __name__ == "__main__":
-    print(main()["markdown"])
+    sys.exit(main())

@@ -16,16 +16,18 @@
 """
 from __future__ import annotations
 
+import sys
 from fractions import Fraction
 
 import matplotlib.pyplot as plt
 import numpy as np
 
-from experiments.common import save_figure
-from experiments.analysis_common import (
-    LAMBDAS, N_NEAREST, PAPER_A_RANGE, PAPER_GRAM_BOUND, Budget, budget_for, collect_many, collections_for, describe_params, fmt,
-    get_context, limit, tracker_params, max_offdiag_row_sum, pooled, strictly_dd, sum_to_one_codes,
+from experiments.grid import script_main
+from experiments.internals import (
+    LAMBDAS, N_NEAREST, PAPER_A_RANGE, PAPER_GRAM_BOUND, Budget, budget_for, collect_many, collections_for,
+    describe_params, limit, max_offdiag_row_sum, pooled, strictly_dd, sum_to_one_codes, tracker_params,
 )
+from experiments.tables import fmt, save_figure
 from nrmlc import io
 
 STEM = "theorem1_checks"
@@ -169,15 +171,15 @@ def _example(grams: np.ndarray, mask: np.ndarray, lam: float) -> dict | None:
             "c": np.round(inverse.sum(axis=1), 4).tolist()}
 
 
-def runs(context, budget: Budget | None = None) -> list:
+def runs(context) -> list:
     """The recorded internals this script reads."""
-    budget = budget_for(context, budget, SYNTHETIC_BUDGET, REAL_BUDGET)
+    budget = budget_for(context, SYNTHETIC_BUDGET, REAL_BUDGET)
     return collections_for(context, limit(context.paper_sequences() or context.sequences(), budget), budget)
 
 
-def main(context=None, budget: Budget | None = None) -> dict:
-    context = get_context(context)
-    budget = budget_for(context, budget, SYNTHETIC_BUDGET, REAL_BUDGET)
+def collect(context) -> dict:
+    """The numbers and what the figure needs (the JSON, the plot's inputs, the report section)."""
+    budget = budget_for(context, SYNTHETIC_BUDGET, REAL_BUDGET)
     rng = np.random.default_rng(20160101)
 
     exact = paper_counterexample()
@@ -255,15 +257,12 @@ def main(context=None, budget: Budget | None = None) -> dict:
                   "paper_bound_loose_by_factor": "K"},
         "elements": elements,
     }
-    io.write_json(context.output(STEM, ".json"), result)
-
-    _plot(context, nearest, random_subsets)
-    markdown = _markdown(result, context, sequences, budget)
-    print(markdown)
-    return {"title": "Theorem 1: numeric checks", "figures": [f"{STEM}.png"], "markdown": markdown}
+    section = {"title": "Theorem 1: numeric checks", "figures": [f"{STEM}.png"],
+               "markdown": _markdown(result, context, sequences, budget)}
+    return {"result": result, "plot": (nearest, random_subsets), "section": section}
 
 
-def _plot(context, nearest, random_subsets) -> None:
+def _plot(path, nearest, random_subsets) -> None:
     fig, axes = plt.subplots(1, 2, figsize=(10, 3.8))
     colours = {"5": "tab:blue", "8": "tab:orange", "10": "tab:green"}
     for k, by_lambda in nearest.items():
@@ -285,7 +284,7 @@ def _plot(context, nearest, random_subsets) -> None:
     axes[0].legend(fontsize=7)
     axes[1].legend(fontsize=7)
     fig.suptitle(r"Theorem 1 on patch data: $F=A^TA+\lambda I$, $c=F^{-1}1$", fontsize=10)
-    save_figure(fig, context.output(STEM, ".png"), dpi=120)
+    save_figure(fig, path, dpi=120)
 
 
 def _markdown(result, context, sequences, budget) -> str:
@@ -384,5 +383,19 @@ def _markdown(result, context, sequences, budget) -> str:
     return "\n".join(lines) + "\n"
 
 
+def plot(data: dict, path) -> None:
+    _plot(path, *data["plot"])
+
+
+def report(context, data: dict) -> dict:
+    """Write the numbers (JSON); returns the report section."""
+    io.write_json(context.output(STEM, ".json"), data["result"])
+    return data["section"]
+
+
+def main(argv=None) -> int:
+    return script_main(__name__, argv)
+
+
 if __name__ == "__main__":
-    main()
+    sys.exit(main())

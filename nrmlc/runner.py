@@ -179,18 +179,21 @@ def warm_up() -> None:
 
 
 def kernels_cached() -> bool:
-    """Whether numba's on-disk cache holds every compiled module, newer than its source.
+    """Whether numba's on-disk cache holds compiled code, newer than its source, for every
+    module with an ``@njit`` kernel.
 
     A heuristic (numba decides for itself), good enough to tell the user that a
     run will start by compiling.
     """
+    import re
+
+    decorated = re.compile(r"^\s*@(numba\.)?njit", re.MULTILINE)
     root = Path(__file__).resolve().parent
     for source in root.rglob("*.py"):
-        text = source.read_text(errors="replace")
-        if "njit" not in text or "cache" not in text:
+        if not decorated.search(source.read_text(errors="replace")):
             continue
         indexes = list((source.parent / "__pycache__").glob(f"{source.stem}.*.nbi"))
-        if not indexes or min(p.stat().st_mtime for p in indexes) < source.stat().st_mtime:
+        if not indexes or max(p.stat().st_mtime for p in indexes) < source.stat().st_mtime:
             return False
     return True
 
@@ -380,6 +383,10 @@ class RunCache:
     def _compute(self, missing: list, executor, jobs, progress) -> list:
         """Run ``missing``, storing each result as soon as it exists; returns [(job, arrays)]."""
         done: list = []
+        workers = jobs or os.cpu_count() or 1
+        own = executor is None
+        if own and any(getattr(job, "uses_kernels", False) for job in missing):
+            prepare_kernels()  # here, once, before any worker loads them and before any timing
         bar = Progress(sum(job.frames() for job in missing), len(missing), enabled=progress)
 
         def finished(job, arrays: dict) -> None:
@@ -387,20 +394,13 @@ class RunCache:
             done.append((job, arrays))
             bar.update(job.frames(), getattr(job, "label", ""))
 
-        workers = jobs or os.cpu_count() or 1
         try:
-            uses_kernels = any(getattr(job, "uses_kernels", False) for job in missing)
-            if executor is None and workers == 1:
+            if own and workers == 1:
                 # In-process, one job at a time: each result is stored as soon as it exists.
-                if uses_kernels:
-                    prepare_kernels()
                 for job in missing:
                     finished(job, _execute(job, 1))
                 return done
-            own = executor is None
             if own:
-                if uses_kernels:
-                    prepare_kernels()  # compile here once, before the workers load the cache
                 executor = process_pool(min(workers, len(missing)))
             try:
                 pending = {executor.submit(_execute, job, None): job for job in missing}

@@ -8,10 +8,10 @@ import numpy as np
 import pytest
 
 from experiments import (
-    analysis_common, fig1_coefficients, fig2_mean_gray, fig_occlusion, stats_nonnegativity, theorem1_checks,
+    internals, fig1_coefficients, fig2_mean_gray, fig_occlusion, stats_nonnegativity, theorem1_checks,
 )
-from experiments.analysis_common import Budget
-from experiments.common import Context
+from experiments.internals import Budget
+from experiments.grid import Context, run_script
 from nrmlc.data import synthetic_suite
 from nrmlc.runner import RunCache
 
@@ -69,7 +69,7 @@ def test_sum_to_one_codes_match_direct_solve():
     A = rng.standard_normal((50, 1024, 6)) * 0.02
     G = np.einsum("nda,ndb->nab", A, A)
     for lam in (0.01, 1.0):
-        inverse, raw, codes = analysis_common.sum_to_one_codes(G, lam)
+        inverse, raw, codes = internals.sum_to_one_codes(G, lam)
         direct = np.linalg.solve(G + lam * np.eye(6), np.ones((50, 6, 1)))[..., 0]
         assert np.allclose(raw, direct, rtol=1e-8, atol=1e-10)
         assert np.allclose(codes.sum(axis=1), 1.0)
@@ -82,16 +82,16 @@ def test_sum_to_one_codes_match_direct_solve():
 
 def test_strictly_dd_and_row_sums():
     F = np.array(theorem1_checks.PAPER_F, dtype=float)
-    assert analysis_common.strictly_dd(F)
-    assert not analysis_common.strictly_dd(np.linalg.inv(F))
-    assert analysis_common.max_offdiag_row_sum(F) == 4.0
-    assert not analysis_common.strictly_dd(np.array([[1.0, 1.0], [1.0, 1.0]]))  # equality is not strict
+    assert internals.strictly_dd(F)
+    assert not internals.strictly_dd(np.linalg.inv(F))
+    assert internals.max_offdiag_row_sum(F) == 4.0
+    assert not internals.strictly_dd(np.array([[1.0, 1.0], [1.0, 1.0]]))  # equality is not strict
 
 
 def test_sampled_frames_skip_template_updates():
-    frames = analysis_common.sampled_frames(100, 5, 5)
+    frames = internals.sampled_frames(100, 5, 5)
     assert frames == list(range(5, 100, 5))
-    frames = analysis_common.sampled_frames(40, 4, 5)
+    frames = internals.sampled_frames(40, 4, 5)
     assert all((f + 1) % 5 != 0 for f in frames)
     assert frames == sorted(set(frames)) and frames[-1] < 40
 
@@ -118,7 +118,7 @@ def _check_output(context, out, stem, suffixes=(".png", ".json")):
 
 
 def test_theorem1_main(tiny_context):
-    out = theorem1_checks.main(tiny_context)
+    out = run_script(theorem1_checks, tiny_context)
     data = _check_output(tiny_context, out, "theorem1_checks")
     assert data["paper_counterexample"]["c_has_negative_entry"]
     for group in ("nearest_dictionaries", "random_subset_dictionaries"):
@@ -132,10 +132,10 @@ def test_theorem1_main(tiny_context):
 
 
 def test_stats_main(tiny_context):
-    out = stats_nonnegativity.main(tiny_context)
+    out = run_script(stats_nonnegativity, tiny_context)
     data = _check_output(tiny_context, out, "stats_nonnegativity", (".png", ".json", ".csv"))
     rows = {r["lambda"]: r for r in data["by_lambda"]}
-    assert set(rows) == set(analysis_common.LAMBDAS)
+    assert set(rows) == set(internals.LAMBDAS)
     assert rows[10.0]["c_negative_share"] == 0.0
     # Our numpy closed forms reproduce the tracker's codes on the same candidates.
     assert data["tracker_agreement"]["max_abs_diff_c"] < 1e-4
@@ -143,7 +143,7 @@ def test_stats_main(tiny_context):
 
 
 def test_fig2_main(tiny_context):
-    out = fig2_mean_gray.main(tiny_context)
+    out = run_script(fig2_mean_gray, tiny_context)
     data = _check_output(tiny_context, out, "fig2_mean_gray")
     for name in ("positive", "negative", "candidates"):
         assert 0 <= data["overall"][name]["min"] <= data["overall"][name]["max"] <= 1 / 32 + 1e-6
@@ -151,7 +151,7 @@ def test_fig2_main(tiny_context):
 
 
 def test_fig1_main(tiny_context):
-    out = fig1_coefficients.main(tiny_context)
+    out = run_script(fig1_coefficients, tiny_context)
     data = _check_output(tiny_context, out, "fig1_coefficients")
     assert data["sequence"] == "synth-01"
     assert set(data["trackers"]) == {"no_l2", "l2"}
@@ -160,7 +160,7 @@ def test_fig1_main(tiny_context):
 
 
 def test_fig_occlusion_main(tiny_context):
-    out = fig_occlusion.main(tiny_context)
+    out = run_script(fig_occlusion, tiny_context)
     data = _check_output(tiny_context, out, "fig_occlusion")
     stats = data["synthetic_flag_statistics"]
     assert stats["occluded_frames"] > 0 and stats["other_frames"] > 0
@@ -168,9 +168,28 @@ def test_fig_occlusion_main(tiny_context):
     assert data["at_frame"]["len_neg"] == data["at_frame"]["negative_templates_used"]
 
 
-def test_runs_match_main(tiny_context):
-    """run_all schedules ``runs(context)``; main must then find every run cached."""
-    for module in (fig1_coefficients, fig_occlusion):
-        module.main(tiny_context)  # cached when the tests above ran first
-        specs = module.runs(tiny_context)
-        assert specs and all(tiny_context.cache.has(s) for s in specs)
+def test_runs_match_what_the_scripts_read(tiny_context):
+    """run_all computes ``runs(context)`` first; the scripts must then find every job cached."""
+    for module in (theorem1_checks, stats_nonnegativity, fig2_mean_gray, fig1_coefficients, fig_occlusion):
+        jobs = module.runs(tiny_context)
+        assert jobs and not tiny_context.cache.missing(jobs), module.__name__  # the tests above ran them
+
+
+def test_paper_claims_use_the_paper_preset(tiny_context):
+    from experiments.internals import describe_params, tracker_params
+    from nrmlc.tracker.params import TrackerParams
+
+    params = tracker_params(TINY, tiny_context)
+    assert params == TrackerParams.paper().replace(n_particles=TINY.n_particles)
+    assert describe_params(TrackerParams.paper()).startswith("the 'paper' preset")
+
+
+def test_fig1_labels_never_overlap():
+    """Nearby templates share one label; distant ones get their own, at the cluster's largest code."""
+    indices = np.array([0, 4, 49, 50, 51, 52, 120])
+    values = np.array([0.1, 0.14, 0.14, 0.15, 0.16, 0.01, -0.3])
+    labels = fig1_coefficients.label_groups(indices, values, span=10)
+    assert [text for _, _, text in labels] == ["#1, #5", "#50-#53 (4)", "#121"]
+    assert [y for _, y, _ in labels] == [0.14, 0.16, -0.3]
+    xs = [x for x, _, _ in labels]
+    assert all(b - a >= 10 for a, b in zip(xs, xs[1:]))

@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from experiments import paper_numbers, peers, run_all
-from experiments.common import context_from_args, score
+from experiments.grid import context_from_args, run_script, score
 from nrmlc.data import open_sequence
 
 MY_SCRIPTS = ("table1_table2_accuracy", "fig3_qualitative", "fig4_lambda_sweep", "ablations",
@@ -120,7 +120,7 @@ def test_per_sequence_motion_runs_and_shares_the_table_runs(grid, monkeypatch):
     monkeypatch.setitem(script.CLASSIC_MOTION, "synth-01", {"affsig": (2.0, 2.0, 0.004, 0.0, 0.0, 0.0),
                                                             "box": (64.0, 48.0)})
     context = context_from_args(tiny_args(tmp, figures="figures_motion")[:-2])
-    result = script.main(context)
+    result = run_script(script, context)
     data = json.loads((tmp / "figures_motion" / f"{script.STEM}.json").read_text())
     (row,) = data["rows"]
     table = json.loads((tmp / "figures" / "table1_table2_accuracy.json").read_text())
@@ -146,13 +146,19 @@ def test_recentring_free_column_is_the_table_run(grid):
 def test_missing_and_failing_scripts(tmp_path, monkeypatch):
     """A script that does not import or fails is reported, the others still run, exit 1."""
     good = types.ModuleType("experiments._test_good")
-    good.main = lambda context: {"title": "Good", "figures": [], "markdown": "fine"}
+    good.STEM = "good"
+    good.runs = lambda context: []
+    good.collect = lambda context: {}
+    good.plot = lambda data, path: None
+    good.report = lambda context, data: {"title": "Good", "figures": [], "markdown": "fine"}
     bad = types.ModuleType("experiments._test_bad")
+    vars(bad).update(vars(good))
+    bad.__name__ = "experiments._test_bad"
 
     def fail(context):
         raise RuntimeError("boom")
 
-    bad.main = fail
+    bad.collect = fail
     monkeypatch.setitem(sys.modules, good.__name__, good)
     monkeypatch.setitem(sys.modules, bad.__name__, bad)
     monkeypatch.setattr(run_all, "SCRIPTS", ("experiments._test_absent", bad.__name__, good.__name__))
@@ -168,7 +174,7 @@ def test_missing_and_failing_scripts(tmp_path, monkeypatch):
 
 
 def test_outputs_go_to_the_ignored_folder_by_default(tmp_path, monkeypatch):
-    from experiments.common import DEFAULT_OUT, REPO_ROOT
+    from experiments.grid import DEFAULT_OUT, REPO_ROOT
 
     monkeypatch.delenv("NRMLC_DATA", raising=False)
     assert context_from_args([]).figures_dir == DEFAULT_OUT == REPO_ROOT / "out" / "figures"

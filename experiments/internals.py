@@ -1,9 +1,9 @@
-"""Shared helpers of the Sec. 3.3 analysis scripts (Theorem 1, Figs. 1, 2, occlusion).
+"""Tracker internals for the Sec. 3.3 analysis scripts (Theorem 1, Figs. 1, 2, statistics, occlusion).
 
 Two things live here:
 
-* :func:`collect` / :func:`collect_many`: run the tracker (default parameters,
-  one seed) over the first frames of a sequence and, at sampled frames, record
+* :class:`Collection` (a job of the run cache) and :func:`collect_many`: run the
+  tracker (the 'paper' preset, one seed) over the first frames of a sequence and, at sampled frames, record
   what the coding step saw: for a subset of the candidates the Gram
   ``G = A'A`` of ``A = B - y 1'`` over the candidate's ``N_NEAREST`` nearest
   templates (the tracker's ``k_max`` neighbours first, in the tracker's order,
@@ -16,21 +16,19 @@ Two things live here:
   :func:`sum_to_one_codes`, :func:`dictionary_weights`, :func:`strictly_dd`),
   used to re-solve the *same* candidates for every lambda.
 
-Sampling budget: :class:`Budget`. Every script takes ``main(context=None,
-budget=None)``; a budget can also ride on the context as
-``context.analysis_budget`` (what the tests do).
+Sampling budget: :class:`Budget`, one default per script for synthetic and for
+real data; ``context.analysis_budget`` overrides it (what the tests do).
 """
 from __future__ import annotations
 
 import hashlib
 import json
 import time
-from dataclasses import asdict, dataclass, replace
+from dataclasses import dataclass, replace
 from typing import ClassVar
 
 import numpy as np
 
-from nrmlc import io
 from nrmlc.runner import frames_tracked, sequence_identity
 from nrmlc.tracker.params import TrackerParams
 
@@ -82,46 +80,42 @@ class Budget:
                 f"{self.n_candidates} random candidates (plus the best) per recorded frame")
 
 
-def budget_for(context, budget: Budget | None, synthetic: Budget, real: Budget) -> Budget:
-    """The budget to use: explicit, else ``context.analysis_budget``, else the default."""
-    chosen = budget if budget is not None else getattr(context, "analysis_budget", None)
+def budget_for(context, synthetic: Budget, real: Budget) -> Budget:
+    """The budget to use: ``context.analysis_budget`` if set (the tests), else the script's
+    default for synthetic or real data; the context's frame cap (``--max-frames``) applies."""
+    chosen = getattr(context, "analysis_budget", None)
     if chosen is None:
         chosen = synthetic if context.is_synthetic else real
-    cap = getattr(context, "max_frames", None)  # the context's development frame cap, if any
+    cap = getattr(context, "max_frames", None)
     if cap is not None:
         chosen = replace(chosen, max_frames=int(cap) if chosen.max_frames is None else min(int(cap), chosen.max_frames))
     return chosen
 
 
 def tracker_params(budget: Budget, context=None, **changes) -> TrackerParams:
-    """The context's base parameters (the paper's defaults unless ``--param`` changed them),
-    with the budget's particle count and ``changes``."""
-    params = getattr(context, "base_params", None) or TrackerParams()
+    """The 'paper' preset (these scripts test the paper's own claims; ``--param`` changes
+    apply), with the budget's particle count and ``changes``."""
+    params = context.paper_params() if context is not None else TrackerParams.paper()
     if budget.n_particles is not None:
         changes.setdefault("n_particles", int(budget.n_particles))
     return params.replace(**changes) if changes else params
 
 
 def describe_params(params: TrackerParams) -> str:
-    """'the paper's default parameters' or which fields differ from them."""
-    from experiments.common import params_differences
+    """Which preset ``params`` are (the closest one) and what differs from it."""
+    from experiments.grid import params_differences
+    from nrmlc.tracker.params import PRESETS
 
-    changed = params_differences(params)
-    if not changed:
-        return "the paper's default parameters (lambda = 1, beta = 0.1)"
-    return "default parameters except " + ", ".join(f"{k} = {v}" for k, v in sorted(changed.items()))
+    name, changed = min(((name, params_differences(params, TrackerParams.preset(name))) for name in PRESETS),
+                        key=lambda pair: len(pair[1]))
+    text = f"the '{name}' preset" + (" (the paper as printed)" if name == "paper" else "")
+    if changed:
+        text += " except " + ", ".join(f"{k} = {v}" for k, v in sorted(changed.items()))
+    return text
 
 
 def limit(sequences: list, budget: Budget) -> list:
     return list(sequences) if budget.max_sequences is None else list(sequences)[: budget.max_sequences]
-
-
-def get_context(context):
-    if context is None:
-        from experiments.common import context_from_args
-
-        context = context_from_args()
-    return context
 
 
 # --------------------------------------------------------------------------- collection
@@ -350,24 +344,5 @@ def dictionary_weights(gram: np.ndarray, codes_by_size: list[np.ndarray], beta: 
     return sum_to_one_codes(H, beta)[2]
 
 
-def percentiles(values: np.ndarray, qs=(0, 0.1, 1, 5, 25, 50, 75, 95, 99, 99.9, 100)) -> dict:
-    values = np.asarray(values, dtype=np.float64).ravel()
-    return {f"p{q:g}": float(np.percentile(values, q)) for q in qs} if values.size else {}
-
-
-def fmt(value: float, digits: int = 3) -> str:
-    """Compact number formatting for markdown tables."""
-    if value is None or (isinstance(value, float) and not np.isfinite(value)):
-        return "n/a"
-    value = float(value)
-    if value != 0 and (abs(value) < 1e-3 or abs(value) >= 1e4):
-        return f"{value:.{digits}g}" if abs(value) >= 1e4 else f"{value:.2e}"
-    return f"{value:.{digits}g}"
-
-
-def budget_dict(budget: Budget) -> dict:
-    return asdict(budget)
-
-
-__all__ = ["Budget", "budget_for", "collect_many", "sum_to_one_codes", "strictly_dd", "dictionary_weights",
-           "ridge_inverse", "max_offdiag_row_sum", "LAMBDAS", "N_NEAREST"]
+__all__ = ["Budget", "Collection", "budget_for", "collect_many", "collections_for", "sum_to_one_codes", "strictly_dd",
+           "dictionary_weights", "ridge_inverse", "max_offdiag_row_sum", "LAMBDAS", "N_NEAREST"]

@@ -1,25 +1,30 @@
-"""What every experiment script shares: where the data is, which seeds, the run cache.
+"""The experiment grid: where the data is, which sequences and seeds, the run cache,
+and the one shape every experiment script has.
 
-Each script has ``main(context=None)``; called alone it builds a context from
-the command line (``--data``, ``--seeds``, ...), so
-``python -m experiments.fig4_lambda_sweep --data ../shared/data/sequences``
-works as well as ``make figures``.
+Every script in :data:`experiments.run_all.SCRIPTS` defines
+
+- ``STEM`` and ``TITLE``;
+- ``runs(context)``: every job it reads (tracking runs, live OpenCV runs,
+  recorded internals), so that ``run_all`` computes the whole grid in one pool;
+- ``collect(context) -> data``: the numbers, from the cached jobs;
+- ``plot(data, path)``: the figure ``<STEM>.png``;
+- ``report(context, data) -> section``: writes ``<STEM>.csv/.json`` and returns
+  its section of ``REPORT.md`` (``title``, ``figures``, ``markdown``);
+- ``main(argv=None)``: ``return script_main(__name__, argv)``, so that
+  ``python -m experiments.fig4_lambda_sweep --data ../shared/data/sequences``
+  works alone, with the options of ``make figures``.
 """
 from __future__ import annotations
 
 import argparse
-import math
+import sys
 from dataclasses import dataclass, field
 from pathlib import Path
 
-import matplotlib
-
-matplotlib.use("Agg")  # never a window: figures go to files
-
-from experiments.sequence_sets import DEVELOPMENT_SEQUENCES, PAPER_SEQUENCES, paper_name  # noqa: E402
-from nrmlc.config import data_root_from_env  # noqa: E402
-from nrmlc.runner import DEFAULT_CACHE, RunCache, RunSpec, frames_tracked  # noqa: E402
-from nrmlc.tracker.params import TrackerParams  # noqa: E402
+from experiments.sequence_sets import DEVELOPMENT_SEQUENCES, PAPER_SEQUENCES
+from nrmlc.config import data_root_from_env
+from nrmlc.runner import DEFAULT_CACHE, RunCache, RunSpec, frames_tracked
+from nrmlc.tracker.params import TrackerParams
 
 REPO_ROOT = Path(__file__).resolve().parent.parent
 
@@ -41,9 +46,10 @@ class Context:
     seeds : tuple of int
         Seeds for the main tables (mean of these).
     sweep_seeds : tuple of int
-        Seeds of the lambda sweep (Fig. 4) and the re-centring runs.
+        Seeds of the lambda sweep (Fig. 4) and the per-sequence motion runs.
     ablation_seeds : tuple of int
-        Seeds of the ablations (fewer: many configurations, all nine sequences).
+        Seeds of the ablations and the re-centring runs (fewer: many
+        configurations, all nine sequences).
     jobs : int or None
         Worker processes (default: all cores).
     executor : concurrent.futures.Executor or None
@@ -52,8 +58,10 @@ class Context:
     max_frames : int or None
         Track only the first frames of every sequence (development; None: all).
     base_params : TrackerParams
-        Parameters every grid starts from (the paper's defaults unless a
+        Parameters every grid starts from (the 'default' preset unless a
         ``--param`` changed them; the report says so).
+    param_changes : dict
+        The ``--param`` changes (also applied to :meth:`paper_params`).
     n_synthetic : int
         Sequences of the synthetic suite (when no data root is given).
     peer_root : Path or None
@@ -72,6 +80,7 @@ class Context:
     cache: RunCache = field(default_factory=lambda: RunCache(REPO_ROOT / DEFAULT_CACHE))
     max_frames: int | None = None
     base_params: TrackerParams = field(default_factory=TrackerParams)
+    param_changes: dict = field(default_factory=dict)
     n_synthetic: int = 3
     peer_root: Path | None = None
     only_sequences: tuple | None = None
@@ -133,6 +142,13 @@ class Context:
         paper = sorted((s for s in self.sequences() if s.name in order), key=lambda s: order[s.name])
         others = [s for s in self.sequences() if s.name not in order]
         return paper, others
+
+    def paper_params(self) -> TrackerParams:
+        """The 'paper' preset (the paper as printed) with the ``--param`` changes: what the
+        experiments about the paper's own claims (Theorem 1, Figs. 1 and 2, statistics,
+        occlusion) run."""
+        paper = getattr(TrackerParams, "paper", None)
+        return paper(**self.param_changes) if paper is not None else self.base_params
 
     def n_frames(self, sequence) -> int:
         """Frames tracked in ``sequence`` under :attr:`max_frames`."""
@@ -216,75 +232,8 @@ def score(boxes, sequence, n_frames: int | None = None):
 
     from nrmlc.metrics import evaluate
 
-    n = len(boxes) if n_frames is None else int(n_frames)
-    n = min(n, len(sequence))
+    n = frames_tracked(sequence, len(boxes) if n_frames is None else n_frames)
     return evaluate(np.asarray(boxes, dtype=np.float64)[:n], sequence.groundtruth[:n])
-
-
-def mean_std(values) -> tuple[float, float]:
-    """Mean and (population) standard deviation of the finite values.
-
-    (nan, nan) for no value; the std is NaN for a single value (one seed has
-    no spread to report, and :func:`fmt` then prints the mean alone).
-    """
-    import numpy as np
-
-    array = np.asarray([v for v in values if v is not None], dtype=np.float64)
-    array = array[np.isfinite(array)]
-    if array.size == 0:
-        return math.nan, math.nan
-    return float(array.mean()), float(array.std()) if array.size > 1 else math.nan
-
-
-def fmt(value, digits: int = 2, std=None) -> str:
-    """``value`` (``± std``) with ``digits`` decimals; an en dash for missing values."""
-    if value is None or (isinstance(value, float) and not math.isfinite(value)):
-        return "–"
-    text = f"{value:.{digits}f}"
-    if std is not None and math.isfinite(std):
-        text += f" ± {std:.{digits}f}"
-    return text
-
-
-def clean(obj):
-    """``obj`` with NaN/inf floats replaced by None, ready for strict JSON."""
-    if isinstance(obj, dict):
-        return {str(k): clean(v) for k, v in obj.items()}
-    if isinstance(obj, (list, tuple)):
-        return [clean(v) for v in obj]
-    if isinstance(obj, float) and not math.isfinite(obj):
-        return None
-    try:
-        import numpy as np
-
-        if isinstance(obj, np.ndarray):
-            return clean(obj.tolist())
-        if isinstance(obj, np.generic):
-            return clean(obj.item())
-    except ImportError:  # pragma: no cover
-        pass
-    return obj
-
-
-def write_csv(path, header: list[str], rows: list[list]) -> Path:
-    """Write a CSV atomically (floats with 6 significant digits, missing values empty)."""
-    import csv
-    import io as _io
-
-    from nrmlc import io
-
-    def cell(value):
-        if value is None:
-            return ""
-        if isinstance(value, float):
-            return "" if not math.isfinite(value) else f"{value:.6g}"
-        return value
-
-    buffer = _io.StringIO()
-    writer = csv.writer(buffer, lineterminator="\n")
-    writer.writerow(header)
-    writer.writerows([[cell(v) for v in row] for row in rows])
-    return io.write_text(path, buffer.getvalue())
 
 
 def params_differences(params: TrackerParams, reference: TrackerParams | None = None) -> dict:
@@ -306,9 +255,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--seeds", type=int, default=None, metavar="N",
                         help="seeds of Tables I/II and Fig. 3 (default 5)")
     parser.add_argument("--sweep-seeds", type=int, default=None, metavar="N",
-                        help="seeds of the lambda sweep and the re-centring runs (default 2)")
+                        help="seeds of the lambda sweep (Fig. 4) and the per-sequence motion runs (default 2)")
     parser.add_argument("--ablation-seeds", type=int, default=None, metavar="N",
-                        help="seeds of the ablations (default 1)")
+                        help="seeds of the ablations and the re-centring runs (default 1)")
     parser.add_argument("--jobs", type=int, default=None, metavar="J", help="worker processes (default: all cores)")
     parser.add_argument("--max-frames", type=int, default=None, metavar="N",
                         help="development: track only the first N frames of every sequence (tables then say "
@@ -357,6 +306,7 @@ def context_from_namespace(args) -> Context:
 
         changes = dict(parse_param_assignment(text) for text in args.param)
         context.base_params = context.base_params.replace(**changes)
+        context.param_changes = changes
     if getattr(args, "synthetic_sequences", None):
         context.n_synthetic = int(args.synthetic_sequences)
     if getattr(args, "cache", None):
@@ -366,38 +316,30 @@ def context_from_namespace(args) -> Context:
     return context
 
 
-def collect_and_plot(context, doc: str, stem: str, collect, plot):
-    """The opening every figure script's ``main`` shares.
-
-    Builds the context from the command line when the script runs alone (its
-    module docstring's first line is the ``--help`` text), collects the numbers
-    and draws ``figures/<stem>.png``.
-
-    Returns
-    -------
-    context : Context
-    data : dict, what ``collect(context)`` returned
-    png : Path
-    plotted : whatever ``plot(data, png)`` returned
-    """
-    context = context or context_from_args(description=doc.splitlines()[0])
-    data = collect(context)
-    png = context.output(stem, ".png")
-    return context, data, png, plot(data, png)
 
 
-def save_figure(fig, path, dpi: int = 100, rect=None) -> Path:
-    """Lay out ``fig`` (``tight_layout`` within ``rect``), write it to ``path`` as PNG
-    atomically (a killed run leaves the old file or the new one, never half of one) and
-    close it."""
-    import io as _io
+def run_script(module, context) -> dict:
+    """What ``run_all`` does with every script: collect, plot, write the numbers; returns
+    the script's section of the report."""
+    data = module.collect(context)
+    module.plot(data, context.output(module.STEM, ".png"))
+    return module.report(context, data)
 
-    import matplotlib.pyplot as plt
 
-    from nrmlc import io
+def script_main(name: str, argv=None) -> int:
+    """``main`` of a script run alone: options as ``make figures``, its jobs computed in
+    one pool, its outputs written, its report section printed."""
+    from nrmlc.errors import NrmlcError
 
-    fig.tight_layout(rect=rect)
-    buffer = _io.BytesIO()
-    fig.savefig(buffer, format="png", dpi=dpi)
-    plt.close(fig)
-    return io.write_bytes(path, buffer.getvalue())
+    module = sys.modules[name]
+    name = getattr(module.__spec__, "name", None) or module.__name__  # not "__main__" under python -m
+    parser = argparse.ArgumentParser(prog=f"python -m {name}", description=module.__doc__.splitlines()[0])
+    add_arguments(parser)
+    try:
+        context = context_from_namespace(parser.parse_args(argv))
+        context.cache.ensure(list(module.runs(context)), executor=context.executor, jobs=context.jobs)
+    except NrmlcError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
+    print(run_script(module, context)["markdown"])
+    return 0
