@@ -113,11 +113,13 @@ def run_track(args: argparse.Namespace) -> int:
     try:
         result = track_sequence(sequence, params, seed=args.seed, n_frames=args.frames, init_box=init_box,
                                 progress=True, on_frame=on_frame)
-        io.write_boxes(args.out, result.boxes)
-        if args.diagnostics:
-            io.write_npz(args.diagnostics, **result.to_arrays())
-        if writer is not None:
-            writer.close()
+        # All or nothing: a failure while writing one output leaves every earlier file as it was.
+        with io.Together() as outputs:
+            outputs.boxes(args.out, result.boxes)
+            if args.diagnostics:
+                outputs.npz(args.diagnostics, **result.to_arrays())
+            if writer is not None and (video := writer.finish()) is not None:
+                outputs.file(video, args.video)
     except BaseException:
         if writer is not None:
             writer.abort()

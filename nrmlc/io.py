@@ -97,7 +97,8 @@ def discard(tmp: str | os.PathLike) -> None:
         pass
 
 
-def _atomic(path: str | os.PathLike, write: Callable[[Any], None], mode: str) -> Path:
+def _stage(path: str | os.PathLike, write: Callable[[Any], None], mode: str) -> Path:
+    """Write and fsync a uniquely named temporary file beside ``path``'s target; return its path."""
     target = _target(path)
     target.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(prefix=_prefix(target.name), dir=target.parent)
@@ -108,13 +109,66 @@ def _atomic(path: str | os.PathLike, write: Callable[[Any], None], mode: str) ->
             write(handle)
             handle.flush()
             os.fsync(handle.fileno())
+    except BaseException:
+        discard(tmp)
+        raise
+    return Path(tmp)
+
+
+def _atomic(path: str | os.PathLike, write: Callable[[Any], None], mode: str) -> Path:
+    tmp = _stage(path, write, mode)
+    target = _target(path)
+    try:
         os.replace(tmp, target)
     except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
+        discard(tmp)
         raise
     _fsync_folder(target.parent)
     return Path(path)
+
+
+class Together:
+    """Several outputs of one run, renamed over their targets only once all are written.
+
+    Use as a context manager: each method writes a temporary file; leaving the
+    block normally renames every one of them over its target, leaving it with
+    an exception removes them all, so a run that fails while writing its
+    second output (a full disk) does not leave its first one replaced.
+    """
+
+    def __init__(self) -> None:
+        self._pending: list[tuple[Path, str | os.PathLike]] = []
+
+    def __enter__(self) -> "Together":
+        return self
+
+    def text(self, path: str | os.PathLike, text: str) -> None:
+        self._pending.append((_stage(path, lambda f: f.write(text), "w"), path))
+
+    def boxes(self, path: str | os.PathLike, boxes: np.ndarray) -> None:
+        self.text(path, format_boxes(boxes, path))
+
+    def npz(self, path: str | os.PathLike, **arrays: np.ndarray) -> None:
+        self._pending.append((_stage(path, lambda f: np.savez_compressed(f, **arrays), "wb"), path))
+
+    def file(self, tmp: str | os.PathLike, path: str | os.PathLike) -> None:
+        """Adopt a temporary file written elsewhere (see :func:`temporary_for`)."""
+        self._pending.append((Path(tmp), path))
+
+    def __exit__(self, kind, value, traceback) -> bool:
+        pending, self._pending = self._pending, []
+        if kind is not None:
+            for tmp, _ in pending:
+                discard(tmp)
+            return False
+        for done, (tmp, path) in enumerate(pending):
+            try:
+                commit(tmp, path)
+            except BaseException:
+                for later, _ in pending[done:]:
+                    discard(later)
+                raise
+        return False
 
 
 def _same_file(a: os.stat_result, b: os.stat_result) -> bool:
@@ -240,8 +294,12 @@ def write_boxes(path: str | os.PathLike, boxes: np.ndarray) -> Path:
     read back with :func:`nrmlc.data.read_box_file` equals the one written,
     however small or large.
     """
+    return write_text(path, format_boxes(boxes, path))
+
+
+def format_boxes(boxes: np.ndarray, path: str | os.PathLike = "boxes") -> str:
+    """The text of a box file: one exact ``x,y,w,h`` line per row of an (n, 4) array."""
     boxes = np.asarray(boxes, dtype=np.float64)
     if boxes.ndim != 2 or boxes.shape[1] != 4 or len(boxes) == 0:
         raise ParameterError(f"{os.fspath(path)}: boxes must have shape (n, 4) with n >= 1, got {boxes.shape}")
-    lines = [",".join(format_number(v) for v in row) for row in boxes]
-    return write_text(path, "\n".join(lines) + "\n")
+    return "\n".join(",".join(format_number(v) for v in row) for row in boxes) + "\n"

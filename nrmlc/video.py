@@ -2,7 +2,8 @@
 
 The video is written like every other output (:mod:`nrmlc.io`): to a
 uniquely named temporary file beside the destination, renamed over it only
-by :meth:`BoxVideoWriter.close` after a successful run; :meth:`abort`
+by :meth:`BoxVideoWriter.close` (or with the run's other outputs, see
+:meth:`BoxVideoWriter.finish`) after a successful run; :meth:`abort`
 (an exception, Ctrl-C) removes it and leaves an earlier video untouched.
 """
 from __future__ import annotations
@@ -88,16 +89,25 @@ class BoxVideoWriter:
         self.writer.write(image)
         self.frames_written += 1
 
-    def close(self) -> None:
-        """Finish the video and rename it over ``path`` (call only after a successful run)."""
+    def finish(self) -> Path | None:
+        """Finish the video in its temporary file and return that file (None: no frame was drawn).
+
+        The caller renames it over ``path`` (:func:`nrmlc.io.commit`, or
+        :meth:`nrmlc.io.Together.file` with the run's other outputs).
+        """
         self.writer.release()
         if not self.frames_written:
             io.discard(self.tmp_path)
-            return
+            return None
         if os.path.getsize(self.tmp_path) == 0:  # OpenCV reports no write errors (e.g. a full disk)
             io.discard(self.tmp_path)
             raise DataError(f"--video {self.path}: the video writer wrote nothing (disk full?); no video written")
-        io.commit(self.tmp_path, self.path)
+        return self.tmp_path
+
+    def close(self) -> None:
+        """Finish the video and rename it over ``path`` (call only after a successful run)."""
+        if self.finish() is not None:
+            io.commit(self.tmp_path, self.path)
 
     def abort(self) -> None:
         """Drop the partial video; an earlier file at ``path`` stays as it was."""

@@ -327,3 +327,20 @@ def test_write_boxes_refuses_other_shapes(boxes, tmp_path):
     with pytest.raises(ParameterError, match=r"r\.txt: boxes must have shape \(n, 4\)"):
         io.write_boxes(tmp_path / "r.txt", boxes)
     assert not (tmp_path / "r.txt").exists()
+
+
+def test_failure_writing_one_output_keeps_every_earlier_output(seq, tmp_path, capsys, monkeypatch):
+    out, video, diagnostics = tmp_path / "r.txt", tmp_path / "v.mp4", tmp_path / "d.npz"
+    for path in (out, video, diagnostics):
+        path.write_bytes(b"earlier " + path.name.encode())
+
+    def disk_full(*args, **kwargs):
+        raise OSError(28, "No space left on device")
+
+    monkeypatch.setattr(np, "savez_compressed", disk_full)  # --diagnostics is written after --out
+    code, _, err = run_main(["track", seq, "--out", out, "--video", video, "--diagnostics", diagnostics, *FAST],
+                            capsys)
+    assert code == 2 and "No space left on device" in err, err
+    for path in (out, video, diagnostics):
+        assert path.read_bytes() == b"earlier " + path.name.encode()
+    assert not temporaries(tmp_path)
