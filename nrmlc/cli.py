@@ -34,6 +34,9 @@ def _cmd_evaluate(args: argparse.Namespace) -> int:
     if n_annotated < n_predicted:
         warnings.warn(f"{args.groundtruth}: {n_annotated} ground-truth boxes for {n_predicted} result boxes; "
                       f"only the first {n_annotated} frames are evaluated")
+    elif n_predicted < n_annotated:
+        warnings.warn(f"{args.results}: {n_predicted} result boxes for {n_annotated} ground-truth boxes; "
+                      f"the annotated frames after frame {n_predicted} count as failures")
     result = evaluate_files(args.results, args.groundtruth, skip_first=not args.include_first)
     summary = result.as_dict()
     if args.json:

@@ -323,6 +323,16 @@ def test_synth_writes_what_list_reads(tmp_path, capsys):
     assert code == 0 and "synth-01" in out and "synth-02" in out, err
 
 
+def test_short_results_warn_that_the_rest_are_failures(seq, tmp_path, capsys):
+    out_file = tmp_path / "r.txt"
+    assert run_main(["track", seq, "--out", out_file, "--frames", "3", *FAST], capsys)[0] == 0
+    with pytest.warns(UserWarning, match=r"r\.txt: 3 result boxes for 8 ground-truth boxes; the annotated frames "
+                                         r"after frame 3 count as failures"):
+        code, out, _ = run_main(["evaluate", "--results", out_file, "--groundtruth", seq / "groundtruth_rect.txt",
+                                 "--json"], capsys)
+    assert code == 0 and '"n_missing": 5' in out
+
+
 def test_initial_box_partly_outside_is_clipped(seq, tmp_path, capsys):
     out_file = tmp_path / "r.txt"
     with pytest.warns(UserWarning, match=r"partly outside the 128x96 frame; clipped to \[1\.0, 1\.0, 15\.0, 17\.0\]"):
