@@ -210,6 +210,9 @@ BAD_INPUT = {
                                  r"groundtruth_rect\.txt:2: expected 4 numbers"),
     "list-missing-root": (_nothing, ["list", "{seq}/nowhere"], r"nowhere: data root not found"),
     # second round (issue 12)
+    "track-a-data-root": (_nothing, ["track", "{seq}/.."], r"no 'img' folder with the frames; it looks like a data "
+                                                           r"root: give one sequence folder, e\.g\. \S*Seq"),
+    "list-a-sequence": (_nothing, ["list", "{seq}"], r"Seq: no sequences .*; it is itself a sequence folder"),
     "truncated-png": (_truncate("0003.png"), [], r"0003\.png: cannot read image \(truncated PNG: no IEND chunk\)"),
     "truncated-bmp": (_truncated_bmp, [], r"0003\.bmp: cannot read image \(truncated BMP: \d+ of \d+ bytes\)"),
     "init-box-empty": (_nothing, ["--init-box="], r"--init-box: expected 4 numbers \(x,y,w,h\), got 0"),

@@ -145,7 +145,10 @@ def find_images(folder: str | os.PathLike) -> list[Path]:
     if not image_folder.is_dir() and any(p.suffix.lower() in IMAGE_EXTENSIONS for p in Path(folder).iterdir()):
         image_folder = Path(folder)  # a plain folder of frames, without the 'img' level
     if not image_folder.is_dir():
-        raise DataError(f"{folder}: no '{IMAGE_FOLDER}' folder with the frames")
+        examples = sorted(p.name for p in Path(folder).iterdir() if (p / IMAGE_FOLDER).is_dir())
+        hint = (f"; it looks like a data root: give one sequence folder, e.g. {Path(folder) / examples[0]}"
+                if examples else "")
+        raise DataError(f"{folder}: no '{IMAGE_FOLDER}' folder with the frames{hint}")
     images = sorted(
         p for p in image_folder.iterdir() if p.suffix.lower() in IMAGE_EXTENSIONS and not p.name.startswith(".")
     )
@@ -299,5 +302,6 @@ def list_sequences(root: str | os.PathLike) -> list[Sequence]:
         else:
             sequences.append(open_sequence(folder))
     if not sequences:
-        raise DataError(f"{root}: no sequences (subfolders with an '{IMAGE_FOLDER}' folder)")
+        hint = "; it is itself a sequence folder: use 'track' on it" if (root / IMAGE_FOLDER).is_dir() else ""
+        raise DataError(f"{root}: no sequences (subfolders with an '{IMAGE_FOLDER}' folder){hint}")
     return sorted(sequences, key=lambda s: s.name)
