@@ -31,6 +31,7 @@ occluded. Outputs ``ablations.{png,csv,json}``.
 """
 from __future__ import annotations
 
+import functools
 import sys
 
 import numpy as np
@@ -239,9 +240,8 @@ def report(context, data: dict) -> dict:
     return {"title": TITLE, "figures": [f"{STEM}.png"], "markdown": "\n".join(text)}
 
 
-def main(argv=None) -> int:
-    return script_main(__name__, argv)
-
+#: ``python -m experiments.<script> [options]``: this script alone, with the options of ``make figures``.
+main = functools.partial(script_main, __name__)
 
 if __name__ == "__main__":
     sys.exit(main())

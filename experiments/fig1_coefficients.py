@@ -15,20 +15,22 @@ Runs go through the shared run cache (``context.run``).
 """
 from __future__ import annotations
 
+import functools
 import sys
 
 import matplotlib.pyplot as plt
 import numpy as np
 from matplotlib.patches import Rectangle
 
-from experiments.grid import script_main
+from experiments.grid import json_report, script_main
 from experiments.internals import Budget, budget_for, describe_params, tracker_params
 from experiments.tables import save_figure
-from nrmlc import io
 from nrmlc.metrics import overlaps
 from nrmlc.runner import RunSpec
 
 STEM = "fig1_coefficients"
+#: ``report(context, data)``: writes ``<STEM>.json``, returns the report section.
+report = json_report(STEM)
 PART_IOU = 0.3
 TOLERANCE = 1e-9  # a coefficient below -TOLERANCE counts as negative
 
@@ -147,7 +149,8 @@ def label_groups(indices, values, span: float) -> list[tuple[float, float, str]]
     return out
 
 
-def _plot(path, sequence, runs, frame, result) -> None:
+def plot(data: dict, path) -> None:
+    sequence, runs, frame, result = data["plot"]
     fig = plt.figure(figsize=(13, 4.2))
     grid = fig.add_gridspec(1, 3, width_ratios=[1.2, 1.2, 1])
     colours = {"no_l2": "green", "l2": "red"}
@@ -236,19 +239,8 @@ def _markdown(result) -> str:
     return "\n".join(lines) + "\n"
 
 
-def plot(data: dict, path) -> None:
-    _plot(path, *data["plot"])
-
-
-def report(context, data: dict) -> dict:
-    """Write the numbers (JSON); returns the report section."""
-    io.write_json(context.output(STEM, ".json"), data["result"])
-    return data["section"]
-
-
-def main(argv=None) -> int:
-    return script_main(__name__, argv)
-
+#: ``python -m experiments.<script> [options]``: this script alone, with the options of ``make figures``.
+main = functools.partial(script_main, __name__)
 
 if __name__ == "__main__":
     sys.exit(main())

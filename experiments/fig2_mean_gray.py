@@ -12,18 +12,20 @@ Data: the same recorded frames as :mod:`experiments.stats_nonnegativity`
 """
 from __future__ import annotations
 
+import functools
 import sys
 
 import matplotlib.pyplot as plt
 import numpy as np
 
-from experiments.grid import script_main
-from experiments.internals import budget_for, collect_many, collections_for, describe_params, limit, tracker_params
+from experiments import stats_nonnegativity
+from experiments.grid import json_report, script_main
+from experiments.internals import describe_params
 from experiments.tables import save_figure
-from experiments.stats_nonnegativity import REAL_BUDGET, SYNTHETIC_BUDGET
-from nrmlc import io
 
 STEM = "fig2_mean_gray"
+#: ``report(context, data)``: writes ``<STEM>.json``, returns the report section.
+report = json_report(STEM)
 BOUND = 1.0 / 32.0
 PAPER = {"positive": "~0.029", "negative": "0 - 0.3", "candidates": "0.026 - 0.03"}
 
@@ -36,16 +38,15 @@ def _summary(values: np.ndarray) -> dict:
 
 
 def runs(context) -> list:
-    """The recorded internals this script reads (those of the statistics script)."""
-    budget = budget_for(context, SYNTHETIC_BUDGET, REAL_BUDGET)
-    return collections_for(context, limit(context.sequences(), budget), budget)
+    """The recorded internals this script reads: those of :mod:`experiments.stats_nonnegativity`."""
+    return stats_nonnegativity.runs(context)
 
 
 def collect(context) -> dict:
     """The numbers and what the figure needs (the JSON, the plot's inputs, the report section)."""
-    budget = budget_for(context, SYNTHETIC_BUDGET, REAL_BUDGET)
-    sequences = limit(context.sequences(), budget)
-    collections = collect_many(context, sequences, budget)
+    jobs = runs(context)
+    budget = jobs[0].budget
+    collections = context.run(jobs)
 
     per_sequence = {}
     positives, negatives, candidates = [], [], []
@@ -60,15 +61,16 @@ def collect(context) -> dict:
                                    "frames": c["frames"].tolist()}
     overall = {"positive": _summary(np.concatenate(positives)), "negative": _summary(np.concatenate(negatives)),
                "candidates": _summary(np.concatenate(candidates))}
-    result = {"data": {"label": context.data_label, "sequences": [s.name for s in sequences], "seed": 0,
-                       "params": describe_params(tracker_params(budget, context)), "budget": budget.__dict__},
+    result = {"data": {"label": context.data_label, "sequences": [c["name"] for c in collections], "seed": 0,
+                       "params": describe_params(jobs[0].params), "budget": budget.__dict__},
               "bound_unit_norm_nonnegative": BOUND, "paper": PAPER, "overall": overall, "per_sequence": per_sequence}
     section = {"title": "Fig. 2: mean gray value of templates and candidates", "figures": [f"{STEM}.png"],
                "markdown": _markdown(result, budget)}
     return {"result": result, "plot": (collections, overall), "section": section}
 
 
-def _plot(path, collections, overall) -> None:
+def plot(data: dict, path) -> None:
+    collections, overall = data["plot"]
     fig, axes = plt.subplots(1, 2, figsize=(11, 4), sharey=True)
     ax = axes[0]
     for c in collections:
@@ -136,19 +138,8 @@ def _markdown(result, budget) -> str:
     return "\n".join(lines) + "\n"
 
 
-def plot(data: dict, path) -> None:
-    _plot(path, *data["plot"])
-
-
-def report(context, data: dict) -> dict:
-    """Write the numbers (JSON); returns the report section."""
-    io.write_json(context.output(STEM, ".json"), data["result"])
-    return data["section"]
-
-
-def main(argv=None) -> int:
-    return script_main(__name__, argv)
-
+#: ``python -m experiments.<script> [options]``: this script alone, with the options of ``make figures``.
+main = functools.partial(script_main, __name__)
 
 if __name__ == "__main__":
     sys.exit(main())

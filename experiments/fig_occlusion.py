@@ -10,19 +10,21 @@ frames vs the other frames. Runs go through the shared run cache.
 """
 from __future__ import annotations
 
+import functools
 import sys
 
 import matplotlib.pyplot as plt
 import numpy as np
 from matplotlib.patches import Patch, Rectangle
 
-from experiments.grid import script_main
+from experiments.grid import json_report, script_main
 from experiments.internals import Budget, budget_for, describe_params, tracker_params
 from experiments.tables import save_figure
-from nrmlc import io
 from nrmlc.runner import RunSpec
 
 STEM = "fig_occlusion"
+#: ``report(context, data)``: writes ``<STEM>.json``, returns the report section.
+report = json_report(STEM)
 PAPER_FRAME = 528  # 1-based, as printed
 SYNTHETIC_BUDGET = Budget(max_frames=None)
 REAL_BUDGET = Budget(max_frames=None, seeds=(0,))
@@ -179,7 +181,8 @@ def collect(context) -> dict:
             "plot": (sequence, run, frame, d, n_pos, lengths, flags, truth, params.occlusion_max_negative)}
 
 
-def _plot(path, sequence, run, frame, d, n_pos, lengths, flags, truth, threshold) -> None:
+def plot(data: dict, path) -> None:
+    sequence, run, frame, d, n_pos, lengths, flags, truth, threshold = data["plot"]
     fig = plt.figure(figsize=(12, 7))
     grid = fig.add_gridspec(2, 3, height_ratios=[1.1, 1])
     ax = fig.add_subplot(grid[0, 0])
@@ -269,19 +272,8 @@ def _markdown(result, title) -> str:
     return "\n".join(lines) + "\n"
 
 
-def plot(data: dict, path) -> None:
-    _plot(path, *data["plot"])
-
-
-def report(context, data: dict) -> dict:
-    """Write the numbers (JSON); returns the report section."""
-    io.write_json(context.output(STEM, ".json"), data["result"])
-    return data["section"]
-
-
-def main(argv=None) -> int:
-    return script_main(__name__, argv)
-
+#: ``python -m experiments.<script> [options]``: this script alone, with the options of ``make figures``.
+main = functools.partial(script_main, __name__)
 
 if __name__ == "__main__":
     sys.exit(main())

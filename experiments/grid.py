@@ -326,6 +326,18 @@ def run_script(module, context) -> dict:
     return module.report(context, data)
 
 
+def json_report(stem: str):
+    """``report`` of a script whose ``collect`` returns ``{"result", "section", ...}``: it writes
+    ``result`` as ``<stem>.json`` and returns ``section``."""
+    def report(context, data: dict) -> dict:
+        from experiments.tables import write_json
+
+        write_json(context.output(stem, ".json"), data["result"])
+        return data["section"]
+
+    return report
+
+
 def script_main(name: str, argv=None) -> int:
     """``main`` of a script run alone: options as ``make figures``, its jobs computed in
     one pool, its outputs written, its report section printed."""

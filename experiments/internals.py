@@ -21,15 +21,13 @@ real data; ``context.analysis_budget`` overrides it (what the tests do).
 """
 from __future__ import annotations
 
-import hashlib
-import json
 import time
 from dataclasses import dataclass, replace
 from typing import ClassVar
 
 import numpy as np
 
-from nrmlc.runner import frames_tracked, sequence_identity
+from nrmlc.runner import description_key, frames_tracked, sequence_identity
 from nrmlc.tracker.params import TrackerParams
 
 #: Bump when the recorded content changes (invalidates the collection cache).
@@ -225,8 +223,7 @@ class Collection:
                 "code_version": version}
 
     def key(self, version: str) -> str:
-        text = json.dumps(self.description(version), sort_keys=True, default=str)
-        return hashlib.sha256(text.encode()).hexdigest()[:24]
+        return description_key(self.description(version))
 
     def execute(self) -> dict:
         from nrmlc.tracker.nrmlc_tracker import NRMLCTracker

@@ -24,8 +24,6 @@ Two sources of peer numbers, both scored with :mod:`nrmlc.metrics` against
 """
 from __future__ import annotations
 
-import hashlib
-import json
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -34,7 +32,7 @@ from typing import ClassVar
 import numpy as np
 
 from experiments.sequence_sets import PAPER_NAME_OF, paper_name
-from nrmlc.runner import RunCache, frames_tracked, sequence_identity
+from nrmlc.runner import RunCache, description_key, frames_tracked, sequence_identity
 
 #: Bump when the live runner's behaviour changes (it is part of every key).
 LIVE_RUNNER_VERSION = 1
@@ -104,8 +102,7 @@ class LiveSpec:
                 "n_frames": self.n_frames}
 
     def key(self, version: str | None = None) -> str:
-        text = json.dumps(self.description(), sort_keys=True, default=str)
-        return hashlib.sha256(text.encode()).hexdigest()[:24]
+        return description_key(self.description())
 
     def execute(self) -> dict:
         return run_live(self)

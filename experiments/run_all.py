@@ -108,10 +108,10 @@ def grid_summary(context, jobs_by_script: dict) -> tuple[list, dict, str]:
     for script, jobs in jobs_by_script.items():
         keys = {cache.path(j): j for j in jobs}
         nrmlc = [j for j in keys.values() if getattr(j, "uses_kernels", False)]
-        new = [p for p in keys if p not in unique]
-        lines.append(f"  {script}: {len(nrmlc)} NRMLC runs, {sum(j.frames() for j in nrmlc)} frames"
-                     + (f"; {len(keys) - len(nrmlc)} OpenCV runs" if len(keys) > len(nrmlc) else "")
-                     + f" ({sum(keys[p].frames() for p in new)} frames not already counted above)")
+        new = [j for p, j in keys.items() if p not in unique and getattr(j, "uses_kernels", False)]
+        lines.append(f"  {script}: {len(nrmlc)} NRMLC runs, {sum(j.frames() for j in nrmlc)} frames "
+                     f"({sum(j.frames() for j in new)} not shared with the scripts above)"
+                     + (f"; {len(keys) - len(nrmlc)} OpenCV runs" if len(keys) > len(nrmlc) else ""))
         unique.update(keys)
     union = list(unique.values())
     present = {path for path in unique if path.is_file()}

@@ -14,6 +14,7 @@ with beta = 0.1 and beta = 0), and we report:
 """
 from __future__ import annotations
 
+import functools
 import sys
 
 import matplotlib.pyplot as plt
@@ -25,8 +26,7 @@ from experiments.internals import (
     describe_params, dictionary_weights, limit, max_offdiag_row_sum, pooled, strictly_dd, sum_to_one_codes,
     tracker_params,
 )
-from experiments.tables import fmt, percentiles, save_figure, write_csv
-from nrmlc import io
+from experiments.tables import fmt, percentiles, save_figure, write_csv, write_json
 
 STEM = "stats_nonnegativity"
 SIZES = (5, 8, 10)
@@ -135,7 +135,8 @@ def collect(context) -> dict:
     return {"result": result, "plot": (rows, collections, grams), "section": section}
 
 
-def _plot(path, rows, collections, grams) -> None:
+def plot(data: dict, path) -> None:
+    rows, collections, grams = data["plot"]
     lams = [r["lambda"] for r in rows]
     fig, axes = plt.subplots(2, 2, figsize=(10, 7))
     ax = axes[0, 0]
@@ -249,21 +250,16 @@ def _markdown(result, budget) -> str:
     return "\n".join(lines) + "\n"
 
 
-def plot(data: dict, path) -> None:
-    _plot(path, *data["plot"])
-
-
 def report(context, data: dict) -> dict:
-    """Write the numbers (JSON); returns the report section."""
-    io.write_json(context.output(STEM, ".json"), data["result"])
+    """Write ``data["result"]`` as JSON; returns the report section."""
+    write_json(context.output(STEM, ".json"), data["result"])
     rows = data["result"]["by_lambda"]
     write_csv(context.output(STEM, ".csv"), list(rows[0]), [list(r.values()) for r in rows])
     return data["section"]
 
 
-def main(argv=None) -> int:
-    return script_main(__name__, argv)
-
+#: ``python -m experiments.<script> [options]``: this script alone, with the options of ``make figures``.
+main = functools.partial(script_main, __name__)
 
 if __name__ == "__main__":
     sys.exit(main())

@@ -1,6 +1,6 @@
 """Tables I and II: centre location error and overlap per sequence, with OTB success/precision plots.
 
-NRMLC runs with the default (paper) parameters on every given sequence, one
+NRMLC runs with the context's base parameters (the 'default' preset) on every given sequence, one
 run per seed (mean ± std over ``context.seeds``). Beside it:
 
 - the paper's own NRMLC column ("Ours (paper)");
@@ -19,6 +19,7 @@ curves; legend with AUC and precision at 20 px).
 """
 from __future__ import annotations
 
+import functools
 import math
 import sys
 
@@ -26,11 +27,12 @@ import numpy as np
 
 from experiments import paper_numbers as paper
 from experiments import peers
-from experiments.grid import script_main, score
+from experiments.grid import params_differences, score, script_main
 from experiments.sequence_sets import paper_name
 from experiments.tables import clean, fmt, mean_std, save_figure, write_csv
 from nrmlc import io
 from nrmlc.metrics import PRECISION_THRESHOLDS, SUCCESS_THRESHOLDS
+from nrmlc.tracker.params import TrackerParams
 
 STEM = "table1_table2_accuracy"
 TITLE = "Tables I and II: centre location error and overlap rate"
@@ -325,12 +327,15 @@ def report(context, data: dict) -> dict:
     names = ", ".join(f"{n} ({data['frames'][n]} frames)" for _, _, ns in data["blocks"] for n in ns)
     paper_block = next((names_ for key, _, names_ in data["blocks"] if key == "paper"), [])
     missing = [s for s in paper.SEQUENCES if s not in {data["paper_names"][n] for n in paper_block}]
-    text = [f"NRMLC with the default (paper) parameters, mean ± std over seeds {data['seeds']} on: {names}."]
+    changed = params_differences(context.base_params, TrackerParams())
+    setting = "the 'default' preset" + ("" if not changed else " except " + ", ".join(
+        f"{k} = {v}" for k, v in sorted(changed.items())))
+    text = [f"NRMLC with {setting}, mean ± std over seeds {data['seeds']} on: {names}."]
     if context.is_synthetic:
         text.append("Synthetic suite: none of the paper's sequences, so no per-sequence paper numbers; the "
                     "paper's averages over its 12 real sequences are shown for reference only.")
     elif missing:
-        text.append(f"The paper's {', '.join(missing)} are not in the data given: their rows are left out; "
+        text.append(f"The paper's {', '.join(missing)} are not among the sequences run: their rows are left out; "
                     f"each average is over the rows shown, and the paper's own average over all 12 is added.")
     renamed = [f"{n} ({data['paper_names'][n]})" for n in paper_block if data["paper_names"][n] != n]
     if renamed:
@@ -361,9 +366,8 @@ def report(context, data: dict) -> dict:
     return {"title": TITLE, "figures": [f"{STEM}.png"], "markdown": "\n".join(text)}
 
 
-def main(argv=None) -> int:
-    return script_main(__name__, argv)
-
+#: ``python -m experiments.<script> [options]``: this script alone, with the options of ``make figures``.
+main = functools.partial(script_main, __name__)
 
 if __name__ == "__main__":
     sys.exit(main())

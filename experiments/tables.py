@@ -7,6 +7,7 @@ Every experiment script formats its tables with :func:`fmt` and writes through
 from __future__ import annotations
 
 import math
+from pathlib import Path
 
 import numpy as np
 
@@ -65,6 +66,13 @@ def clean(obj):
     if isinstance(obj, np.generic):
         return clean(obj.item())
     return obj
+
+
+def write_json(path, obj) -> Path:
+    """Write ``obj`` as strict JSON (NaN/inf as null), atomically."""
+    from nrmlc import io
+
+    return io.write_json(path, clean(obj))
 
 
 def write_csv(path, header: list[str], rows: list[list]) -> Path:

@@ -16,21 +16,23 @@
 """
 from __future__ import annotations
 
+import functools
 import sys
 from fractions import Fraction
 
 import matplotlib.pyplot as plt
 import numpy as np
 
-from experiments.grid import script_main
+from experiments.grid import json_report, script_main
 from experiments.internals import (
     LAMBDAS, N_NEAREST, PAPER_A_RANGE, PAPER_GRAM_BOUND, Budget, budget_for, collect_many, collections_for,
     describe_params, limit, max_offdiag_row_sum, pooled, strictly_dd, sum_to_one_codes, tracker_params,
 )
 from experiments.tables import fmt, save_figure
-from nrmlc import io
 
 STEM = "theorem1_checks"
+#: ``report(context, data)``: writes ``<STEM>.json``, returns the report section.
+report = json_report(STEM)
 SIZES = (5, 8, 10)
 #: Random K-subsets of the N_NEAREST nearest templates drawn per (K, lambda).
 N_RANDOM_SUBSETS = 4000
@@ -262,7 +264,8 @@ def collect(context) -> dict:
     return {"result": result, "plot": (nearest, random_subsets), "section": section}
 
 
-def _plot(path, nearest, random_subsets) -> None:
+def plot(data: dict, path) -> None:
+    nearest, random_subsets = data["plot"]
     fig, axes = plt.subplots(1, 2, figsize=(10, 3.8))
     colours = {"5": "tab:blue", "8": "tab:orange", "10": "tab:green"}
     for k, by_lambda in nearest.items():
@@ -383,19 +386,8 @@ def _markdown(result, context, sequences, budget) -> str:
     return "\n".join(lines) + "\n"
 
 
-def plot(data: dict, path) -> None:
-    _plot(path, *data["plot"])
-
-
-def report(context, data: dict) -> dict:
-    """Write the numbers (JSON); returns the report section."""
-    io.write_json(context.output(STEM, ".json"), data["result"])
-    return data["section"]
-
-
-def main(argv=None) -> int:
-    return script_main(__name__, argv)
-
+#: ``python -m experiments.<script> [options]``: this script alone, with the options of ``make figures``.
+main = functools.partial(script_main, __name__)
 
 if __name__ == "__main__":
     sys.exit(main())

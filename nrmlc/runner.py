@@ -94,7 +94,8 @@ def frames_tracked(sequence, n_frames: int | None) -> int:
     return n if n_frames is None else max(1, min(n, int(n_frames)))
 
 
-def _hash(description: dict) -> str:
+def description_key(description: dict) -> str:
+    """The cache key of a job: a hash of its JSON description (keys sorted)."""
     text = json.dumps(description, sort_keys=True, default=str)
     return hashlib.sha256(text.encode()).hexdigest()[:24]
 
@@ -139,7 +140,7 @@ class RunSpec:
         return description
 
     def key(self, version: str) -> str:
-        return _hash(self.description(version))
+        return description_key(self.description(version))
 
     def frames(self) -> int:
         return frames_tracked(self.sequence, self.n_frames)

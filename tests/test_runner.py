@@ -125,7 +125,7 @@ def test_run_keys_are_pinned():
     # The hash of a fixed description, pinned literally.
     fixed = {"sequence": "folder:/data/Car4:Car4:659", "sequence_name": "Car4", "params": {"lam": 1.0},
              "seed": 0, "n_frames": None, "code_version": "0123456789abcdef"}
-    assert runner._hash(fixed) == "c11d3c395e02361a13af561a"
+    assert runner.description_key(fixed) == "c11d3c395e02361a13af561a"
     assert RunSpec(tiny_sequence(0), recentre_every=10).description("v")["recentre_every"] == 10
     assert "recentre_every" not in RunSpec(tiny_sequence(0)).description("v")
 
