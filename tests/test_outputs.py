@@ -79,6 +79,7 @@ REFUSED = {
     "out-parent-is-a-file": ("--out", "file/r.txt", lambda p, s: _parent_is_file(p), r"is a file, not a folder"),
     "out-unwritable-folder": ("--out", "/proc/nrmlc-test/r.txt", None, r"cannot write to folder"),
     "out-empty": ("--out", "", None, r"--out: empty path"),
+    "out-trailing-slash": ("--out", "results/", None, r"names a folder; give a file name"),
     "video-is-groundtruth": ("--video", "{seq}/groundtruth_rect.txt", None, r"unknown video extension"),
     "video-link-to-frame": ("--video", "v.mp4", lambda p, s: p.symlink_to(s / "img" / "0001.png"),
                             r"is an input of this run"),
@@ -99,7 +100,7 @@ def test_bad_outputs_are_refused_before_tracking(name, seq, tmp_path, capsys, mo
     path = Path(given) if os.path.isabs(given) or given.startswith(str(seq)) else tmp_path / given
     if setup is not None:
         setup(path, seq)
-    given = str(path) if raw else ""
+    given = (str(path) + ("/" if raw.endswith("/") else "")) if raw else ""  # Path drops a trailing slash
     before = {p: p.read_bytes() for p in seq.rglob("*") if p.is_file()}
 
     def not_called(*args, **kwargs):
