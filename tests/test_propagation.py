@@ -230,3 +230,11 @@ def test_pil_rgb_frames_track_like_numpy_frames(sequence):
     for p, g in zip(pil[1:], gray[1:]):
         assert np.array_equal(by_pil.update(p), by_gray.update(g))
     assert to_gray_float32(gray[0]).shape == frames[0].shape[:2]
+
+
+def test_param_tuples_with_empty_elements_are_refused():
+    from nrmlc.tracker.params import parse_param_assignment
+
+    assert parse_param_assignment("dictionary_sizes=5, 8") == ("dictionary_sizes", (5, 8))
+    with pytest.raises(ParameterError, match="dictionary_sizes"):
+        parse_param_assignment("dictionary_sizes=5,,8")

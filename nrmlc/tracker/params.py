@@ -286,7 +286,10 @@ def parse_param_assignment(text: str) -> tuple[str, object]:
             value = float(raw)
         elif isinstance(default, tuple):
             element = type(default[0])
-            value = tuple(element(v) for v in raw.split(",") if v.strip())
+            parts = [v.strip() for v in raw.split(",")]
+            if any(not v for v in parts):
+                raise ValueError
+            value = tuple(element(v) for v in parts)
         else:
             value = raw
     except ValueError:
