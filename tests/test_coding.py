@@ -8,8 +8,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from nrmlc.errors import ParameterError
-from nrmlc.kernels.coding import combine_dictionaries, encode_dictionaries, scatter_codes
-from nrmlc.kernels.distance import candidate_template_dots, nearest_templates, template_gram
+from nrmlc.kernels.coding import code_candidates, combine_dictionaries, encode_dictionaries, scatter_codes
+from nrmlc.kernels.distance import candidate_template_dots, nearest_templates, squared_norms, template_gram
 from nrmlc.testing.reference import (
     kkt_report,
     make_problem,
@@ -338,3 +338,66 @@ def test_parameter_errors(problem):
     check_combine("n_iterations", n_iterations=-1)
     check_combine("n_iterations", n_iterations=1.5)
     check_combine("ridge", ridge=float("inf"))
+
+
+def _in_turn(candidates, templates, sizes, ridge_c, ridge_w, constrained, n_iterations):
+    """The four kernels called one after the other, as the fused one must reproduce."""
+    dots = candidate_template_dots(candidates, templates)
+    gram = template_gram(templates)
+    t_norms = np.ascontiguousarray(np.diag(gram))
+    sq_norms = squared_norms(candidates)
+    neighbours, sq_distances = nearest_templates(dots, sq_norms, t_norms, int(sizes.max()))
+    coefficients = encode_dictionaries(gram, dots, sq_norms, neighbours, sizes, ridge_c, constrained)
+    weights, codes, error_positive, error_negative = combine_dictionaries(
+        gram, dots, sq_norms, neighbours, coefficients, sizes, N_POSITIVE, ridge_w, constrained, n_iterations)
+    return dict(sq_norms=sq_norms, neighbours=neighbours, sq_distances=sq_distances, coefficients=coefficients,
+                weights=weights, codes=codes, error_positive=error_positive, error_negative=error_negative), \
+        (dots, gram, t_norms)
+
+
+@pytest.mark.parametrize("ridges, constrained", [((1.0, 0.1), False), ((1.0, 0.1), True), ((0.0, 0.0), False),
+                                                  ((0.0, 0.0), True), ((1e-3, 1e-3), False)])
+@pytest.mark.parametrize("sizes, n_iterations", [((5, 8, 10), 3), ((8, 3, 5), 1), ((4,), 0)])
+def test_code_candidates_equals_the_four_kernels_in_turn_bit_for_bit(ridges, constrained, sizes, n_iterations):
+    candidates, templates = make_problem(11, n_candidates=70, n_templates=60, dim=64)
+    sizes = np.asarray(sizes, dtype=np.int64)
+    expected, (dots, gram, t_norms) = _in_turn(candidates, templates, sizes, *ridges, constrained, n_iterations)
+    fused = code_candidates(candidates, dots, gram, t_norms, sizes, N_POSITIVE, *ridges, constrained, n_iterations)
+    assert sorted(fused) == sorted(expected)
+    for name, value in expected.items():
+        assert fused[name].dtype == value.dtype and fused[name].shape == value.shape, name
+        np.testing.assert_array_equal(fused[name], value, err_msg=name)
+
+
+def test_code_candidates_is_the_same_for_any_thread_count():
+    candidates, templates = make_problem(12, n_candidates=301, n_templates=60, dim=64)
+    dots = candidate_template_dots(candidates, templates)
+    gram = template_gram(templates)
+    t_norms = np.ascontiguousarray(np.diag(gram))
+    previous = numba.get_num_threads()
+    results = []
+    try:
+        for threads in (1, min(2, numba.config.NUMBA_NUM_THREADS)):
+            numba.set_num_threads(threads)
+            results.append(code_candidates(candidates, dots, gram, t_norms, SIZES, N_POSITIVE, 1.0, 0.1, True, 3))
+    finally:
+        numba.set_num_threads(previous)
+    for name in results[0]:
+        np.testing.assert_array_equal(results[0][name], results[1][name], err_msg=name)
+
+
+def test_code_candidates_checks_its_input():
+    candidates, templates = make_problem(13, n_candidates=10, n_templates=30, dim=16, n_positive=10)
+    dots = candidate_template_dots(candidates, templates)
+    gram = template_gram(templates)
+    t_norms = np.ascontiguousarray(np.diag(gram))
+    arguments = (candidates, dots, gram, t_norms, SIZES, 4, 1.0, 0.1, False, 3)
+    code_candidates(*arguments)
+    with pytest.raises(ParameterError, match="candidates has 9 rows"):
+        code_candidates(candidates[:9], *arguments[1:])
+    with pytest.raises(ParameterError, match="max\\(dictionary_sizes\\) must be >= 1, <= 30"):
+        code_candidates(*arguments[:4], np.array([5, 31]), *arguments[5:])
+    with pytest.raises(ParameterError, match="ridge_w must be finite"):
+        code_candidates(*arguments[:7], -1.0, *arguments[8:])
+    with pytest.raises(ParameterError, match="template_sq_norms has 29 entries"):
+        code_candidates(*arguments[:3], t_norms[:29], *arguments[4:])

@@ -66,8 +66,9 @@ from numba import njit, prange
 from nrmlc.config import NUMBA_FLAGS, PARALLEL_FLAGS
 from nrmlc.errors import ParameterError
 from nrmlc.kernels.checks import check_array, check_flag, check_indices, check_int, check_length, check_nonnegative_real
+from nrmlc.kernels.distance import _nearest_row, _squared_norm
 
-__all__ = ["PLAIN_JITTER", "encode_dictionaries", "combine_dictionaries", "scatter_codes"]
+__all__ = ["PLAIN_JITTER", "encode_dictionaries", "combine_dictionaries", "code_candidates", "scatter_codes"]
 
 #: Relative diagonal jitter of the factorisation when ``ridge`` is 0 (or smaller
 #: than the jitter), in units of ``|y|^2 + max |t|^2`` over the dictionary. With
@@ -388,53 +389,159 @@ def _solve(gram, k, ridge, shift, constrained, chol, members, is_free, trial, gr
     return n_factored
 
 
+@njit(**NUMBA_FLAGS)
+def _encode_row(template_gram, dots_row, sq_norm, neighbours, dictionary_sizes, ridge, constrained, gram, chol,
+                real_work, int_work, coefficients):
+    """Coefficients of one candidate on each of its nested dictionaries (see :func:`encode_dictionaries`).
+
+    ``gram``, ``chol`` (k_max, k_max), ``real_work`` (3, k_max), ``int_work`` (2, k_max)
+    are this candidate's work buffers; ``coefficients`` (m, k_max) its output rows.
+    """
+    k_max = neighbours.shape[0]
+    n_dictionaries = dictionary_sizes.shape[0]
+    # Gram of A = B - y 1' for the full k_max support; the dictionaries are
+    # nested (first k_j neighbours) so each uses its leading block.
+    for a in range(k_max):
+        ua = neighbours[a]
+        for b in range(a + 1):
+            ub = neighbours[b]
+            # Grouped so that each bracket is a difference of near-equal
+            # terms (fastmath may regroup; the error stays a few ulps of
+            # |y|^2 + |t|^2 either way, far below the jitter).
+            value = (template_gram[ua, ub] - dots_row[ua]) - (dots_row[ub] - sq_norm)
+            gram[a, b] = value
+            gram[b, a] = value
+    # Rows of chol holding the factor of G + factored_shift I: the
+    # dictionaries are nested, so with the paper's increasing sizes and one
+    # shift each factorisation continues the previous one.
+    n_factored = 0
+    factored_shift = -1.0
+    for j in range(n_dictionaries):
+        k = dictionary_sizes[j]
+        largest = 0.0
+        for a in range(k):
+            ua = neighbours[a]
+            if template_gram[ua, ua] > largest:
+                largest = template_gram[ua, ua]
+        shift = _diagonal_shift(ridge, sq_norm + largest)
+        reusable = min(n_factored, k) if shift == factored_shift else 0
+        out = real_work[2]
+        n_now = _solve(gram, k, ridge, shift, constrained, chol, int_work[0], int_work[1],
+                       real_work[0], real_work[1], out, reusable)
+        if n_now > 0:
+            n_factored = max(n_now, reusable)
+            factored_shift = shift
+        else:
+            n_factored = 0
+        for a in range(k):
+            coefficients[j, a] = out[a]
+
+
 @njit(**PARALLEL_FLAGS)
 def _encode_dictionaries(
     template_gram, dots, candidate_sq_norms, neighbour_indices, dictionary_sizes,
     ridge, constrained, gram_work, chol_work, real_work, int_work, coefficients,
 ):
-    n_candidates, k_max = neighbour_indices.shape
+    for i in prange(neighbour_indices.shape[0]):
+        _encode_row(template_gram, dots[i], candidate_sq_norms[i], neighbour_indices[i], dictionary_sizes, ridge,
+                    constrained, gram_work[i], chol_work[i], real_work[i], int_work[i], coefficients[i])
+
+
+@njit(**NUMBA_FLAGS)
+def _combine_row(template_gram, dots_row, sq_norm, neighbours, coefficients, dictionary_sizes, n_positive, ridge,
+                 constrained, n_iterations, support_gram, images, gram, chol, real_work, int_work, weights, codes):
+    """Weights, code and confidence errors of one candidate (see :func:`combine_dictionaries`).
+
+    ``coefficients`` (m, k_max) are its per-dictionary codes. Work buffers:
+    ``support_gram`` (k_max, k_max), TT restricted to the support S; ``images``
+    (m, k_max), ``images[j] = TT_S d^j``; ``gram`` (m, m), the Gram of D - y 1';
+    ``chol`` (m, m); ``real_work`` (4, m); ``int_work`` (2, m). Outputs: ``weights``
+    (m,) and ``codes`` (k_max,). Returns ``(error_positive, error_negative)``.
+    """
+    k_max = neighbours.shape[0]
     n_dictionaries = dictionary_sizes.shape[0]
-    for i in prange(n_candidates):
-        gram = gram_work[i]
-        neighbours = neighbour_indices[i]
-        sq_norm = candidate_sq_norms[i]
-        # Gram of A = B - y 1' for the full k_max support; the dictionaries are
-        # nested (first k_j neighbours) so each uses its leading block.
+    projections = real_work[3]   # projections[j] = d^j . YT_S
+    solved = real_work[2]        # the w of eq. allcw
+    for a in range(k_max):
+        for b in range(a + 1):
+            value = template_gram[neighbours[a], neighbours[b]]
+            support_gram[a, b] = value
+            support_gram[b, a] = value
+
+    # Reconstructions D_j = T d^j, handled through d^j's support coordinates
+    # (= coefficients[j, :k_j]); entries beyond k_j are ignored.
+    largest = 0.0
+    for j in range(n_dictionaries):
+        k = dictionary_sizes[j]
+        projection = 0.0
+        energy = 0.0
         for a in range(k_max):
-            ua = neighbours[a]
-            for b in range(a + 1):
-                ub = neighbours[b]
-                # Grouped so that each bracket is a difference of near-equal
-                # terms (fastmath may regroup; the error stays a few ulps of
-                # |y|^2 + |t|^2 either way, far below the jitter).
-                value = (template_gram[ua, ub] - dots[i, ua]) - (dots[i, ub] - sq_norm)
-                gram[a, b] = value
-                gram[b, a] = value
-        # Rows of chol_work[i] holding the factor of G + factored_shift I: the
-        # dictionaries are nested, so with the paper's increasing sizes and one
-        # shift each factorisation continues the previous one.
-        n_factored = 0
-        factored_shift = -1.0
+            value = 0.0
+            for b in range(k):
+                value += support_gram[a, b] * coefficients[j, b]
+            images[j, a] = value
+        for a in range(k):
+            projection += coefficients[j, a] * dots_row[neighbours[a]]
+            energy += coefficients[j, a] * images[j, a]
+        projections[j] = projection
+        if energy > largest:
+            largest = energy
+    # (D_j - y).(D_l - y) = d^j' TT_S d^l - d^j.YT_S - d^l.YT_S + |y|^2
+    for j in range(n_dictionaries):
+        k = dictionary_sizes[j]
+        for l in range(j + 1):
+            cross = 0.0
+            for a in range(k):
+                cross += coefficients[j, a] * images[l, a]
+            value = (cross - projections[j]) - (projections[l] - sq_norm)
+            gram[j, l] = value
+            gram[l, j] = value
+
+    # Algorithm 1. Step 3.2 solves eq. allcw, whose Gram does not depend on
+    # d, so every pass yields the same w: solve it once. Step 3.1 of pass t
+    # combines with the w of pass t-1: uniform on the first pass, the
+    # solved w from the second pass on.
+    uniform = 1.0 / n_dictionaries
+    if n_iterations >= 1:
+        shift = _diagonal_shift(ridge, sq_norm + largest)
+        _solve(gram, n_dictionaries, ridge, shift, constrained, chol, int_work[0],
+               int_work[1], real_work[0], real_work[1], solved, 0)
         for j in range(n_dictionaries):
-            k = dictionary_sizes[j]
-            largest = 0.0
-            for a in range(k):
-                ua = neighbours[a]
-                if template_gram[ua, ua] > largest:
-                    largest = template_gram[ua, ua]
-            shift = _diagonal_shift(ridge, sq_norm + largest)
-            reusable = min(n_factored, k) if shift == factored_shift else 0
-            out = real_work[i, 2]
-            n_now = _solve(gram, k, ridge, shift, constrained, chol_work[i], int_work[i, 0], int_work[i, 1],
-                           real_work[i, 0], real_work[i, 1], out, reusable)
-            if n_now > 0:
-                n_factored = max(n_now, reusable)
-                factored_shift = shift
-            else:
-                n_factored = 0
-            for a in range(k):
-                coefficients[i, j, a] = out[a]
+            weights[j] = solved[j]
+    else:
+        for j in range(n_dictionaries):
+            weights[j] = uniform
+    for a in range(k_max):
+        value = 0.0
+        for j in range(n_dictionaries):
+            if a < dictionary_sizes[j]:
+                if n_iterations >= 2:
+                    value += solved[j] * coefficients[j, a]
+                else:
+                    value += uniform * coefficients[j, a]
+        codes[a] = value
+
+    # eq. conf: reconstruction errors of the positive and negative parts,
+    # |y|^2 - 2 d_P.YT_P + d_P' TT_PP d_P for P = positive or negative support.
+    linear_positive = 0.0
+    quadratic_positive = 0.0
+    linear_negative = 0.0
+    quadratic_negative = 0.0
+    for a in range(k_max):
+        positive_a = neighbours[a] < n_positive
+        part = 0.0
+        for b in range(k_max):
+            if (neighbours[b] < n_positive) == positive_a:
+                part += support_gram[a, b] * codes[b]
+        if positive_a:
+            linear_positive += codes[a] * dots_row[neighbours[a]]
+            quadratic_positive += codes[a] * part
+        else:
+            linear_negative += codes[a] * dots_row[neighbours[a]]
+            quadratic_negative += codes[a] * part
+    positive = (sq_norm - linear_positive) + (quadratic_positive - linear_positive)
+    negative = (sq_norm - linear_negative) + (quadratic_negative - linear_negative)
+    return (positive if positive > 0.0 else 0.0), (negative if negative > 0.0 else 0.0)
 
 
 @njit(**PARALLEL_FLAGS)
@@ -444,102 +551,66 @@ def _combine_dictionaries(
     support_work, image_work, gram_work, chol_work, real_work, int_work,
     weights, codes, error_positive, error_negative,
 ):
-    n_candidates, k_max = neighbour_indices.shape
-    n_dictionaries = dictionary_sizes.shape[0]
-    for i in prange(n_candidates):
-        neighbours = neighbour_indices[i]
-        sq_norm = candidate_sq_norms[i]
-        support_gram = support_work[i]  # TT restricted to the support S
-        images = image_work[i]          # images[j] = TT_S d^j
-        gram = gram_work[i]             # Gram of D - y 1'
-        projections = real_work[i, 3]   # projections[j] = d^j . YT_S
-        solved = real_work[i, 2]        # the w of eq. allcw
-        for a in range(k_max):
-            for b in range(a + 1):
-                value = template_gram[neighbours[a], neighbours[b]]
-                support_gram[a, b] = value
-                support_gram[b, a] = value
+    for i in prange(neighbour_indices.shape[0]):
+        error_positive[i], error_negative[i] = _combine_row(
+            template_gram, dots[i], candidate_sq_norms[i], neighbour_indices[i], coefficients[i], dictionary_sizes,
+            n_positive, ridge, constrained, n_iterations, support_work[i], image_work[i], gram_work[i], chol_work[i],
+            real_work[i], int_work[i], weights[i], codes[i])
 
-        # Reconstructions D_j = T d^j, handled through d^j's support coordinates
-        # (= coefficients[i, j, :k_j]); entries beyond k_j are ignored.
-        largest = 0.0
-        for j in range(n_dictionaries):
-            k = dictionary_sizes[j]
-            projection = 0.0
-            energy = 0.0
-            for a in range(k_max):
-                value = 0.0
-                for b in range(k):
-                    value += support_gram[a, b] * coefficients[i, j, b]
-                images[j, a] = value
-            for a in range(k):
-                projection += coefficients[i, j, a] * dots[i, neighbours[a]]
-                energy += coefficients[i, j, a] * images[j, a]
-            projections[j] = projection
-            if energy > largest:
-                largest = energy
-        # (D_j - y).(D_l - y) = d^j' TT_S d^l - d^j.YT_S - d^l.YT_S + |y|^2
-        for j in range(n_dictionaries):
-            k = dictionary_sizes[j]
-            for l in range(j + 1):
-                cross = 0.0
-                for a in range(k):
-                    cross += coefficients[i, j, a] * images[l, a]
-                value = (cross - projections[j]) - (projections[l] - sq_norm)
-                gram[j, l] = value
-                gram[l, j] = value
 
-        # Algorithm 1. Step 3.2 solves eq. allcw, whose Gram does not depend on
-        # d, so every pass yields the same w: solve it once. Step 3.1 of pass t
-        # combines with the w of pass t-1: uniform on the first pass, the
-        # solved w from the second pass on.
-        uniform = 1.0 / n_dictionaries
-        if n_iterations >= 1:
-            shift = _diagonal_shift(ridge, sq_norm + largest)
-            _solve(gram, n_dictionaries, ridge, shift, constrained, chol_work[i], int_work[i, 0],
-                   int_work[i, 1], real_work[i, 0], real_work[i, 1], solved, 0)
-            for j in range(n_dictionaries):
-                weights[i, j] = solved[j]
-        else:
-            for j in range(n_dictionaries):
-                weights[i, j] = uniform
-        for a in range(k_max):
-            value = 0.0
-            for j in range(n_dictionaries):
-                if a < dictionary_sizes[j]:
-                    if n_iterations >= 2:
-                        value += solved[j] * coefficients[i, j, a]
-                    else:
-                        value += uniform * coefficients[i, j, a]
-            codes[i, a] = value
-
-        # eq. conf: reconstruction errors of the positive and negative parts,
-        # |y|^2 - 2 d_P.YT_P + d_P' TT_PP d_P for P = positive or negative support.
-        linear_positive = 0.0
-        quadratic_positive = 0.0
-        linear_negative = 0.0
-        quadratic_negative = 0.0
-        for a in range(k_max):
-            positive_a = neighbours[a] < n_positive
-            part = 0.0
-            for b in range(k_max):
-                if (neighbours[b] < n_positive) == positive_a:
-                    part += support_gram[a, b] * codes[i, b]
-            if positive_a:
-                linear_positive += codes[i, a] * dots[i, neighbours[a]]
-                quadratic_positive += codes[i, a] * part
-            else:
-                linear_negative += codes[i, a] * dots[i, neighbours[a]]
-                quadratic_negative += codes[i, a] * part
-        value = (sq_norm - linear_positive) + (quadratic_positive - linear_positive)
-        error_positive[i] = value if value > 0.0 else 0.0
-        value = (sq_norm - linear_negative) + (quadratic_negative - linear_negative)
-        error_negative[i] = value if value > 0.0 else 0.0
+@njit(**PARALLEL_FLAGS)
+def _code_candidates(
+    candidates, dots, template_gram, template_sq_norms, dictionary_sizes, n_positive, ridge_c, ridge_w,
+    constrained, n_iterations, sq_norms, neighbour_indices, sq_distances,
+    gram_work, chol_work, real_work, int_work, coefficients,
+    support_work, image_work, w_gram_work, w_chol_work, w_real_work, w_int_work,
+    weights, codes, error_positive, error_negative,
+):
+    for i in prange(candidates.shape[0]):
+        sq_norm = _squared_norm(candidates[i])
+        sq_norms[i] = sq_norm
+        _nearest_row(dots[i], sq_norm, template_sq_norms, neighbour_indices[i], sq_distances[i])
+        _encode_row(template_gram, dots[i], sq_norm, neighbour_indices[i], dictionary_sizes, ridge_c, constrained,
+                    gram_work[i], chol_work[i], real_work[i], int_work[i], coefficients[i])
+        error_positive[i], error_negative[i] = _combine_row(
+            template_gram, dots[i], sq_norm, neighbour_indices[i], coefficients[i], dictionary_sizes, n_positive,
+            ridge_w, constrained, n_iterations, support_work[i], image_work[i], w_gram_work[i], w_chol_work[i],
+            w_real_work[i], w_int_work[i], weights[i], codes[i])
 
 
 # ---------------------------------------------------------------------------
 # Checked public wrappers
 # ---------------------------------------------------------------------------
+
+def _solver_work(n_candidates: int, size: int, n_real: int):
+    """Per-candidate work buffers of :func:`_solve` for problems of up to ``size`` variables,
+    allocated once outside the parallel loop: Cholesky factor ``(n, size, size)``, ``n_real``
+    real vectors (the solver uses two, the caller the rest) and two integer vectors."""
+    return (np.empty((n_candidates, size, size), dtype=np.float64),
+            np.empty((n_candidates, n_real, size), dtype=np.float64),
+            np.empty((n_candidates, 2, size), dtype=np.int64))
+
+
+def _encode_work(n_candidates: int, k_max: int):
+    """Work buffers of :func:`_encode_row`, one set per candidate: gram, chol, real, int."""
+    return (np.empty((n_candidates, k_max, k_max), dtype=np.float64), *_solver_work(n_candidates, k_max, 3))
+
+
+def _combine_work(n_candidates: int, n_dictionaries: int, k_max: int):
+    """Work buffers of :func:`_combine_row`, one set per candidate: support Gram, images, gram,
+    chol, real, int."""
+    return (np.empty((n_candidates, k_max, k_max), dtype=np.float64),
+            np.empty((n_candidates, n_dictionaries, k_max), dtype=np.float64),
+            np.empty((n_candidates, n_dictionaries, n_dictionaries), dtype=np.float64),
+            *_solver_work(n_candidates, n_dictionaries, 4))
+
+
+def _combine_outputs(n_candidates: int, n_dictionaries: int, k_max: int):
+    """weights (n, m), codes (n, k_max), error_positive (n,), error_negative (n,)."""
+    return (np.empty((n_candidates, n_dictionaries), dtype=np.float64),
+            np.empty((n_candidates, k_max), dtype=np.float64),
+            np.empty(n_candidates, dtype=np.float64), np.empty(n_candidates, dtype=np.float64))
+
 
 def _check_common(template_gram, dots, candidate_sq_norms, neighbour_indices, dictionary_sizes):
     """Validate the inputs shared by both kernels; return (n_candidates, n_templates, k_max)."""
@@ -617,15 +688,8 @@ def encode_dictionaries(
     constrained = check_flag("constrained", constrained)
     n_dictionaries = dictionary_sizes.shape[0]
     coefficients = np.zeros((n_candidates, n_dictionaries, k_max), dtype=np.float64)
-    # Per-candidate work buffers, allocated once outside the parallel loop.
-    gram_work = np.empty((n_candidates, k_max, k_max), dtype=np.float64)
-    chol_work = np.empty((n_candidates, k_max, k_max), dtype=np.float64)
-    real_work = np.empty((n_candidates, 3, k_max), dtype=np.float64)
-    int_work = np.empty((n_candidates, 2, k_max), dtype=np.int64)
-    _encode_dictionaries(
-        template_gram, dots, candidate_sq_norms, neighbour_indices, dictionary_sizes,
-        ridge, constrained, gram_work, chol_work, real_work, int_work, coefficients,
-    )
+    _encode_dictionaries(template_gram, dots, candidate_sq_norms, neighbour_indices, dictionary_sizes,
+                         ridge, constrained, *_encode_work(n_candidates, k_max), coefficients)
     return coefficients
 
 
@@ -695,24 +759,93 @@ def combine_dictionaries(
     constrained = check_flag("constrained", constrained)
     n_iterations = check_int("n_iterations", n_iterations, 0)
 
-    weights = np.empty((n_candidates, n_dictionaries), dtype=np.float64)
-    codes = np.empty((n_candidates, k_max), dtype=np.float64)
-    error_positive = np.empty(n_candidates, dtype=np.float64)
-    error_negative = np.empty(n_candidates, dtype=np.float64)
-    # Per-candidate work buffers, allocated once outside the parallel loop.
-    support_work = np.empty((n_candidates, k_max, k_max), dtype=np.float64)
-    image_work = np.empty((n_candidates, n_dictionaries, k_max), dtype=np.float64)
-    gram_work = np.empty((n_candidates, n_dictionaries, n_dictionaries), dtype=np.float64)
-    chol_work = np.empty((n_candidates, n_dictionaries, n_dictionaries), dtype=np.float64)
-    real_work = np.empty((n_candidates, 4, n_dictionaries), dtype=np.float64)
-    int_work = np.empty((n_candidates, 2, n_dictionaries), dtype=np.int64)
-    _combine_dictionaries(
-        template_gram, dots, candidate_sq_norms, neighbour_indices, coefficients,
-        dictionary_sizes, n_positive, ridge, constrained, n_iterations,
-        support_work, image_work, gram_work, chol_work, real_work, int_work,
-        weights, codes, error_positive, error_negative,
-    )
-    return weights, codes, error_positive, error_negative
+    outputs = _combine_outputs(n_candidates, n_dictionaries, k_max)
+    _combine_dictionaries(template_gram, dots, candidate_sq_norms, neighbour_indices, coefficients,
+                          dictionary_sizes, n_positive, ridge, constrained, n_iterations,
+                          *_combine_work(n_candidates, n_dictionaries, k_max), *outputs)
+    return outputs
+
+
+def code_candidates(
+    candidates: np.ndarray,
+    dots: np.ndarray,
+    template_gram: np.ndarray,
+    template_sq_norms: np.ndarray,
+    dictionary_sizes: np.ndarray,
+    n_positive: int,
+    ridge_c: float,
+    ridge_w: float,
+    constrained: bool,
+    n_iterations: int,
+) -> dict:
+    """Everything after the product, for every candidate, in one parallel pass.
+
+    The same results, bit for bit, as :func:`~nrmlc.kernels.distance.squared_norms`,
+    :func:`~nrmlc.kernels.distance.nearest_templates` (``k_max =
+    max(dictionary_sizes)``), :func:`encode_dictionaries` and
+    :func:`combine_dictionaries` called in turn (``tests/test_coding.py``), but each
+    candidate goes through the four steps on one thread while its row of ``dots`` is
+    in cache, and the threads meet once instead of four times: on a shared machine,
+    where a waiting thread may not get its core back at once, each meeting cost up to
+    milliseconds.
+
+    Parameters
+    ----------
+    candidates : ndarray, shape (n_candidates, dim), float32 or float64, C-contiguous
+    dots : ndarray, shape (n_candidates, n_templates), float64
+        ``candidates @ templates.T`` (:func:`~nrmlc.kernels.distance.candidate_template_dots`).
+    template_gram : ndarray, shape (n_templates, n_templates), float64
+    template_sq_norms : ndarray, shape (n_templates,), float64
+    dictionary_sizes : ndarray, shape (n_dictionaries,), int64
+        Sizes ``k_j``; the support is the ``k_max = max(k_j)`` nearest templates.
+    n_positive : int
+        Templates ``0 .. n_positive-1`` are positive.
+    ridge_c, ridge_w : float
+        ``lambda`` (coefficients) and ``beta`` (weights), >= 0.
+    constrained : bool
+    n_iterations : int
+        Passes T of Algorithm 1.
+
+    Returns
+    -------
+    dict with ``sq_norms (n,)``, ``neighbours (n, k_max)`` int64, ``sq_distances
+    (n, k_max)``, ``coefficients (n, m, k_max)``, ``weights (n, m)``, ``codes (n, k_max)``,
+    ``error_positive (n,)``, ``error_negative (n,)``, as the four functions return them.
+    """
+    check_array("candidates", candidates, (np.float32, np.float64), 2)
+    check_array("dots", dots, np.float64, 2)
+    check_array("template_gram", template_gram, np.float64, 2)
+    check_array("template_sq_norms", template_sq_norms, np.float64, 1)
+    check_array("dictionary_sizes", dictionary_sizes, np.int64, 1)
+    n_candidates, n_templates = dots.shape
+    check_length("candidates", candidates, n_candidates, f"dots has {n_candidates} rows")
+    if template_gram.shape != (n_templates, n_templates):
+        raise ParameterError(
+            f"template_gram must have shape ({n_templates}, {n_templates}), got {template_gram.shape}")
+    check_length("template_sq_norms", template_sq_norms, n_templates, f"dots has {n_templates} columns")
+    if dictionary_sizes.shape[0] < 1:
+        raise ParameterError("dictionary_sizes must list at least one dictionary")
+    k_max = check_int("max(dictionary_sizes)", int(dictionary_sizes.max()), 1, n_templates)
+    if dictionary_sizes.min() < 1:
+        raise ParameterError(f"dictionary_sizes must be >= 1, got {dictionary_sizes.tolist()}")
+    n_positive = check_int("n_positive", n_positive, 0, n_templates)
+    ridge_c = check_nonnegative_real("ridge_c", ridge_c)
+    ridge_w = check_nonnegative_real("ridge_w", ridge_w)
+    constrained = check_flag("constrained", constrained)
+    n_iterations = check_int("n_iterations", n_iterations, 0)
+    n_dictionaries = dictionary_sizes.shape[0]
+    sq_norms = np.empty(n_candidates, dtype=np.float64)
+    neighbours = np.empty((n_candidates, k_max), dtype=np.int64)
+    sq_distances = np.empty((n_candidates, k_max), dtype=np.float64)
+    coefficients = np.zeros((n_candidates, n_dictionaries, k_max), dtype=np.float64)
+    outputs = _combine_outputs(n_candidates, n_dictionaries, k_max)
+    _code_candidates(candidates, dots, template_gram, template_sq_norms, dictionary_sizes, n_positive, ridge_c,
+                     ridge_w, constrained, n_iterations, sq_norms, neighbours, sq_distances,
+                     *_encode_work(n_candidates, k_max), coefficients,
+                     *_combine_work(n_candidates, n_dictionaries, k_max), *outputs)
+    weights, codes, error_positive, error_negative = outputs
+    return dict(sq_norms=sq_norms, neighbours=neighbours, sq_distances=sq_distances, coefficients=coefficients,
+                weights=weights, codes=codes, error_positive=error_positive, error_negative=error_negative)
 
 
 def scatter_codes(codes: np.ndarray, neighbour_indices: np.ndarray, n_templates: int) -> np.ndarray:

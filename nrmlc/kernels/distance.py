@@ -37,7 +37,7 @@ import numba
 import numpy as np
 from numba import njit, prange
 
-from nrmlc.config import PARALLEL_FLAGS
+from nrmlc.config import NUMBA_FLAGS, PARALLEL_FLAGS
 from nrmlc.errors import ParameterError
 from nrmlc.kernels.checks import check_array, check_int, check_length
 
@@ -151,15 +151,20 @@ def candidate_template_dots(candidates: np.ndarray, templates: np.ndarray) -> np
     return _row_blocked_product(candidates, templates)
 
 
+@njit(**NUMBA_FLAGS)
+def _squared_norm(vector):
+    """Squared norm of one row, accumulated in float64 (one candidate; see :func:`squared_norms`)."""
+    total = 0.0
+    for d in range(vector.shape[0]):
+        value = np.float64(vector[d])
+        total += value * value
+    return total
+
+
 @njit(**PARALLEL_FLAGS)
 def _squared_norms(vectors, out):
-    n_vectors, dim = vectors.shape
-    for i in prange(n_vectors):
-        total = 0.0
-        for d in range(dim):
-            value = np.float64(vectors[i, d])
-            total += value * value
-        out[i] = total
+    for i in prange(vectors.shape[0]):
+        out[i] = _squared_norm(vectors[i])
 
 
 def squared_norms(vectors: np.ndarray) -> np.ndarray:
@@ -209,40 +214,44 @@ def template_gram(templates: np.ndarray) -> np.ndarray:
     return np.ascontiguousarray(gram)
 
 
+@njit(**NUMBA_FLAGS)
+def _nearest_row(dots_row, sq_norm, template_sq_norms, best_index, best_distance):
+    """The ``k = len(best_index)`` nearest templates of one candidate, sorted, into the two rows.
+
+    The output rows double as the candidate's sorted k-buffer (insertion), so no
+    work buffer is needed.
+    """
+    k = best_index.shape[0]
+    n_filled = 0
+    for t in range(dots_row.shape[0]):
+        distance = sq_norm + template_sq_norms[t] - 2.0 * dots_row[t]
+        # Cancellation can make a true zero slightly negative; clamp so the
+        # ranking and the reported value agree.
+        if distance < 0.0:
+            distance = 0.0
+        # NaN sorts last (as +inf) so every slot is still filled.
+        if not (distance <= np.inf):
+            distance = np.inf
+        if n_filled < k:
+            position = n_filled
+            n_filled += 1
+        elif distance < best_distance[k - 1]:
+            position = k - 1
+        else:
+            continue
+        # Strict '>' keeps earlier (lower-index) templates ahead on ties.
+        while position > 0 and best_distance[position - 1] > distance:
+            best_distance[position] = best_distance[position - 1]
+            best_index[position] = best_index[position - 1]
+            position -= 1
+        best_distance[position] = distance
+        best_index[position] = t
+
+
 @njit(**PARALLEL_FLAGS)
 def _nearest_templates(dots, candidate_sq_norms, template_sq_norms, indices, sq_distances):
-    n_candidates, n_templates = dots.shape
-    k = indices.shape[1]
-    for i in prange(n_candidates):
-        # The output rows double as this candidate's sorted k-buffer: they are
-        # private to the candidate, so no extra work buffer is needed.
-        best_index = indices[i]
-        best_distance = sq_distances[i]
-        n_filled = 0
-        norm_i = candidate_sq_norms[i]
-        for t in range(n_templates):
-            distance = norm_i + template_sq_norms[t] - 2.0 * dots[i, t]
-            # Cancellation can make a true zero slightly negative; clamp so the
-            # ranking and the reported value agree.
-            if distance < 0.0:
-                distance = 0.0
-            # NaN sorts last (as +inf) so every slot is still filled.
-            if not (distance <= np.inf):
-                distance = np.inf
-            if n_filled < k:
-                position = n_filled
-                n_filled += 1
-            elif distance < best_distance[k - 1]:
-                position = k - 1
-            else:
-                continue
-            # Strict '>' keeps earlier (lower-index) templates ahead on ties.
-            while position > 0 and best_distance[position - 1] > distance:
-                best_distance[position] = best_distance[position - 1]
-                best_index[position] = best_index[position - 1]
-                position -= 1
-            best_distance[position] = distance
-            best_index[position] = t
+    for i in prange(dots.shape[0]):
+        _nearest_row(dots[i], candidate_sq_norms[i], template_sq_norms, indices[i], sq_distances[i])
 
 
 def nearest_templates(
