@@ -23,6 +23,9 @@ Writes ``bench.md`` (printed too) and ``bench.json`` (every number) to
   order), one thread, and numba's pool spin-waiting
   (libgomp's default, which ``nrmlc`` turns off; see
   :func:`nrmlc.config.set_threads`).
+* **Grid throughput**: a small grid through the run cache in one process (one
+  thread) and in the local process pool (one single-threaded worker per core), as
+  ``make figures`` runs it, and on a Dask cluster with ``--dask ADDRESS``.
 * **Start-up** (fresh processes: empty numba cache, then warm) and the machine.
 
 The bench times exactly the configuration the API and the CLI use: it calls
@@ -575,6 +578,63 @@ def bench_startup(warm_repeats: int = 2) -> dict:
 
 
 # ---------------------------------------------------------------------------
+# grid throughput
+# ---------------------------------------------------------------------------
+
+_GRID_CHILD = r"""
+import json, os, sys, tempfile, time
+from nrmlc.data import SyntheticSequence, SyntheticSpec
+from nrmlc.runner import RunCache, RunSpec, prepare_kernels, process_pool
+from nrmlc.tracker.params import TrackerParams
+n_runs, n_frames, workers, dask = int(sys.argv[1]), int(sys.argv[2]), int(sys.argv[3]), sys.argv[4]
+specs = [RunSpec(SyntheticSequence(SyntheticSpec(name=f"grid-{k}", seed=k, n_frames=n_frames)), TrackerParams(),
+                 seed=0, label=str(k)) for k in range(n_runs)]
+frames = sum(spec.frames() for spec in specs)
+out = {"runs": n_runs, "frames": frames}
+prepare_kernels()  # loaded before any timing, as the runner does
+with tempfile.TemporaryDirectory() as folder:
+    start = time.perf_counter()
+    RunCache(os.path.join(folder, "serial")).run(specs, jobs=1, progress=False)  # here, one thread
+    out["serial_fps"] = frames / (time.perf_counter() - start)
+    start = time.perf_counter()
+    pool = process_pool(workers)
+    list(pool.map(time.sleep, [0.5] * workers))  # every worker started and warmed up
+    out["pool_start_s"] = time.perf_counter() - start
+    start = time.perf_counter()
+    RunCache(os.path.join(folder, "pool")).run(specs, executor=pool, progress=False)
+    out["pool_fps"] = frames / (time.perf_counter() - start)
+    pool.shutdown()
+    if dask:
+        from distributed import Client
+        with Client(dask) as client:
+            out["dask_workers"] = len(client.scheduler_info()["workers"])
+            start = time.perf_counter()
+            RunCache(os.path.join(folder, "dask")).run(specs, executor=client.get_executor(), progress=False)
+            out["dask_fps"] = frames / (time.perf_counter() - start)
+print(json.dumps(out))
+"""
+
+
+def bench_grid(workers: int, dask: str | None = None, n_runs: int = 8, n_frames: int = 150) -> dict:
+    """Frames per second of a small grid through the run cache: one process (one thread), the
+    local process pool of ``workers`` single-threaded workers (started and warmed up first, timed
+    apart), and optionally a Dask cluster; in a fresh process, so that this one keeps its threads."""
+    output = subprocess.run([sys.executable, "-c", _GRID_CHILD, str(n_runs), str(n_frames), str(workers), dask or ""],
+                            cwd=str(REPO_ROOT), capture_output=True, text=True)
+    if output.returncode != 0:
+        raise RuntimeError(f"grid throughput run failed:\n{output.stderr[-2000:]}")
+    result = json.loads(output.stdout.strip().splitlines()[-1])
+    result["workers"] = workers
+    result["pool_start_s"] -= 0.5  # the tasks that started the workers each slept 0.5 s
+    result["pool_efficiency"] = result["pool_fps"] / (workers * result["serial_fps"])
+    print(f"  {result['runs']} runs, {result['frames']} frames: one process {result['serial_fps']:.1f} fps, "
+          f"pool of {workers} {result['pool_fps']:.1f} fps ({result['pool_efficiency']:.2f} of {workers} x one "
+          f"process; pool start {result['pool_start_s']:.1f} s)"
+          + (f", Dask ({result['dask_workers']} workers) {result['dask_fps']:.1f} fps" if dask else ""), flush=True)
+    return result
+
+
+# ---------------------------------------------------------------------------
 # report
 # ---------------------------------------------------------------------------
 
@@ -607,6 +667,10 @@ def _summary(result: dict) -> list[str]:
             lines.append(f"Threads ({row['sequence']}): {row['setup']}: {row['fps']:.1f} fps; "
                          + compare("it", row["fps"], "the API default", reference["fps"])
                          + f" ({reference['fps']:.1f} fps).")
+    if result.get("grid"):
+        g = result["grid"]
+        lines.append(f"Grid: a pool of {g['workers']} single-threaded workers runs {g['pool_fps']:.1f} frames per "
+                     f"second, {g['pool_efficiency']:.2f} of {g['workers']} x one process ({g['serial_fps']:.1f} fps).")
     kernels = [r for r in result.get("kernels", []) if r["n_particles"] == 600 and "numpy BLAS" not in r["kernel"]]
     if kernels:
         slowest = min(kernels, key=lambda r: r["speedup"])
@@ -656,6 +720,17 @@ def _markdown(result: dict) -> str:
         for row in result["threads"]:
             lines.append(f"| {row['setup']} | {row['numba_threads']} | {row['fps']:.1f} | "
                          f"{row['cpu_ms_per_frame']:.1f} | {row['fps_all']} |")
+    if result.get("grid"):
+        g = result["grid"]
+        lines += ["", "## Grid throughput (the run cache, as `make figures` uses it)", "",
+                  f"{g['runs']} synthetic runs of the default tracker, {g['frames']} frames in all.", "",
+                  "| where | fps (frames per second of wall time) |", "|---|---:|",
+                  f"| one process, one thread | {g['serial_fps']:.1f} |",
+                  f"| local process pool, {g['workers']} single-threaded workers (started beforehand: "
+                  f"{g['pool_start_s']:.1f} s) | {g['pool_fps']:.1f} |"]
+        if "dask_fps" in g:
+            lines.append(f"| Dask cluster, {g['dask_workers']} workers | {g['dask_fps']:.1f} |")
+        lines += ["", f"The pool reaches {g['pool_efficiency']:.2f} of {g['workers']} x the one-process rate."]
     lines += ["", "## Kernels against their numpy references", "",
               "| kernel | N | ms (median) | reference ms | speed-up | reference |",
               "|---|---:|---:|---:|---:|---|"]
@@ -681,7 +756,7 @@ def _markdown(result: dict) -> str:
 def run(data: Path | None, out_dir: Path, n_threads: int | None = None, counts=PARTICLE_COUNTS, repeats: int = 15,
         reference_repeats: int = 2, synthetic_frames: int = 120, real_frames: int | None = REAL_FRAMES,
         e2e_rounds: int = 3, startup: bool = True, reference_subset: dict | None = None,
-        thread_study: bool = True, stage_frames: int = 60) -> dict:
+        thread_study: bool = True, stage_frames: int = 60, grid: bool = True, dask: str | None = None) -> dict:
     from nrmlc import io
     from nrmlc.data import open_sequence, synthetic_suite
 
@@ -719,6 +794,10 @@ def run(data: Path | None, out_dir: Path, n_threads: int | None = None, counts=P
     if startup:
         print("start-up:", flush=True)
         result["startup"] = bench_startup()
+    result["grid"] = None
+    if grid:
+        print("grid throughput:", flush=True)
+        result["grid"] = bench_grid(os.cpu_count() or 1, dask)
     result["machine"] = machine_info()
     result["load_after"] = _load()
     result["summary"] = _summary(result)
@@ -742,6 +821,8 @@ def main(argv=None) -> dict:
                              "'figures' replaces the committed report)")
     parser.add_argument("--threads", type=int, default=None,
                         help="call nrmlc.config.set_threads(THREADS) first (default: leave the API's configuration)")
+    parser.add_argument("--dask", default=None, metavar="SCHEDULER_ADDRESS",
+                        help="also run the grid-throughput runs on this Dask cluster (needs the cluster extra)")
     parser.add_argument("--quick", action="store_true",
                         help="tiny settings (for tests): N=50, few repeats, no start-up or thread study")
     args = parser.parse_args(argv)
@@ -749,8 +830,8 @@ def main(argv=None) -> dict:
         return run(args.data, args.out, args.threads, counts=(50,), repeats=2, reference_repeats=1,
                    synthetic_frames=12, real_frames=12, e2e_rounds=1, startup=False,
                    reference_subset={"regularized": 10, "plain": 10, "constrained": 4}, thread_study=False,
-                   stage_frames=4)
-    return run(args.data, args.out, args.threads)
+                   stage_frames=4, grid=False)
+    return run(args.data, args.out, args.threads, dask=args.dask)
 
 
 if __name__ == "__main__":
