@@ -190,3 +190,29 @@ def test_parameter_errors():
         nearest_templates(dots, cand_norms, tmpl_norms[:-1].copy(), 3)
     with pytest.raises(ParameterError, match="C-contiguous"):
         nearest_templates(dots[:, ::2], cand_norms, tmpl_norms[::2].copy(), 3)
+
+
+def test_product_block_no_worker_has_started_is_computed_by_the_caller():
+    # The gemm worker thread is kept busy (as on a loaded machine, where it may not get a
+    # core): the caller takes its block instead of waiting, with the same result.
+    import threading
+
+    from nrmlc.kernels import distance
+
+    if numba.config.NUMBA_NUM_THREADS < 2:
+        pytest.skip("needs 2 numba threads")
+    rng = np.random.default_rng(3)
+    candidates = rng.random((300, 64), dtype=np.float32)
+    templates = rng.random((40, 64), dtype=np.float32)
+    previous = numba.get_num_threads()
+    release = threading.Event()
+    try:
+        numba.set_num_threads(2)
+        expected = candidate_template_dots(candidates, templates)
+        blocker = distance._thread_pool(1).submit(release.wait, 30)
+        dots = candidate_template_dots(candidates, templates)
+        assert not blocker.done()  # the caller did not wait for the busy worker
+    finally:
+        release.set()
+        numba.set_num_threads(previous)
+    np.testing.assert_array_equal(dots, expected)

@@ -113,10 +113,15 @@ def _row_blocked_product(candidates: np.ndarray, templates: np.ndarray) -> np.nd
             block(0, n_rows)
             return out
         pool = _thread_pool(n_threads - 1)
-        futures = [pool.submit(block, start, stop) for start, stop in zip(bounds[1:-1], bounds[2:])]
+        pending = [(pool.submit(block, start, stop), start, stop) for start, stop in zip(bounds[1:-1], bounds[2:])]
         block(bounds[0], bounds[1])  # the calling thread takes the first block
-        for future in futures:
-            future.result()
+        for future, start, stop in pending:
+            # A block no worker has started yet (its thread has not had a core: the machine
+            # is busy) is computed here rather than waited for; same block, same result.
+            if future.cancel():
+                block(start, stop)
+            else:
+                future.result()
     return out
 
 
