@@ -5,7 +5,9 @@
 * :mod:`nrmlc.kernels.distance` -- candidate-template inner products, squared
   norms, template Gram, k-nearest templates.
 * :mod:`nrmlc.kernels.coding` -- approximated-LLC coefficients per local
-  dictionary, dictionary weights (Algorithm 1) and confidence errors.
+  dictionary, dictionary weights (Algorithm 1) and confidence errors;
+  :func:`~nrmlc.kernels.coding.code_candidates` runs everything after the
+  product (norms, nearest templates, coding, weights) in one parallel pass.
 * :mod:`nrmlc.kernels.checks` -- the input checks of their public wrappers.
 
 Threads (numba, BLAS, OpenCV) follow the policy of
@@ -13,6 +15,7 @@ Threads (numba, BLAS, OpenCV) follow the policy of
 """
 from nrmlc.kernels.coding import (
     PLAIN_JITTER,
+    code_candidates,
     combine_dictionaries,
     encode_dictionaries,
     scatter_codes,
@@ -30,5 +33,6 @@ __all__ = [
     "PLAIN_JITTER",
     "encode_dictionaries",
     "combine_dictionaries",
+    "code_candidates",
     "scatter_codes",
 ]
