@@ -68,9 +68,9 @@ def set_threads(n_threads: int | None) -> int:
       (libgomp about 3 ms, ``GOMP_SPINCOUNT=300000``; OpenBLAS about 0.1 s,
       ``OPENBLAS_THREAD_TIMEOUT``), so a waiting pool kept a core spinning
       while the other pool needed it. On a quiet 2-core machine that only
-      costs CPU time; with any other process running it divided the frame
-      rate by 4 to 7. ``make bench`` measures the set-ups side by side
-      (its "Thread set-ups" table).
+      costs CPU time; with other processes running it divided the frame
+      rate by 3 to 7 (Car4, 600 particles). ``make bench`` measures the
+      set-ups side by side (its "Thread set-ups" table).
     * **numba (OpenMP)** workers wait passively: ``OMP_WAIT_POLICY=PASSIVE``
       is set when :mod:`nrmlc.config` is imported, which ``import nrmlc`` (and
       so any ``nrmlc`` import) does first, unless the variable is already set
