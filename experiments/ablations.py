@@ -5,14 +5,15 @@ Families, each against the default tracker (the first row of each):
 - coding: ``regularized`` (the paper's l2-regularised coder, lambda = 1,
   beta = 0.1) vs ``constrained`` (the exact non-negative problems the paper
   replaces) vs ``plain`` (sum-to-one only, lambda = beta = 0);
-- dictionaries: multiple local dictionaries k = (5, 8, 10) vs a single one
+- dictionary sizes: multiple local dictionaries k = (5, 8, 10) vs a single one
   with k = 5, 8 or 10;
 - occlusion detection on vs off;
 - confidence: the corrected h = exp(-alpha (eps+ - eps-)) vs the printed form;
-- the switches beyond the paper (:data:`SWITCHES`): template sampling (SCM's
-  vs the printed annulus), propagation (condensation vs around the best),
-  translation noise (pixels vs relative to the size), patch normalisation
-  (unit vs centred), every choice of each;
+- every other switch of ``TrackerParams`` (:func:`switches`: a flag, or a string
+  with named choices), every choice of each: template sampling (SCM's vs the
+  printed annulus), propagation (condensation vs around the best), translation
+  noise (pixels vs relative to the size), patch normalisation (unit vs
+  centred), dictionaries (joint vs per class), and any switch added later;
 - preset: the default tracker vs ``TrackerParams.paper()`` (the paper as printed);
 - scale noise of the motion model (which the paper does not state): 1% of the
   size per frame (default) vs 0.25%, 0.5% and 2%;
@@ -56,22 +57,36 @@ METRICS = (("overlap", "mean overlap", 3), ("cle", "CLE (px)", 1), ("negative_sh
            ("negative_share_w", "negative share of w", 4), ("occluded", "frames occluded", 3))
 
 
-#: The tracker's switches beyond the paper (issue 11), one family each: (family, field).
-#: Each family runs every choice of its field; a field the tracker does not have is skipped.
-SWITCHES = (("template sampling", "template_sampling"), ("propagation", "propagation"),
-            ("translation noise", "translation_noise"), ("patch normalisation", "patch_normalization"))
+#: Fields with a family of their own below (not repeated as switches).
+OWN_FAMILIES = ("coding", "confidence", "occlusion_detection")
 
 
 def _choices(field: str) -> tuple:
-    """The choices of a switch of :class:`TrackerParams` (its module's upper-case tuple that holds the default)."""
+    """The choices of a switch of :class:`TrackerParams`: (True, False) for a flag, else the
+    upper-case tuple of :mod:`nrmlc.tracker.params` that holds its default value."""
     from nrmlc.tracker import params as module
 
     default = getattr(module.TrackerParams(), field)
+    if isinstance(default, bool):
+        return (default, not default)
     for name in dir(module):
         value = getattr(module, name)
         if name.isupper() and isinstance(value, tuple) and default in value and all(isinstance(v, str) for v in value):
             return value
     return (default,)
+
+
+def switches() -> list[tuple[str, str]]:
+    """(family, field) of every switch of :class:`TrackerParams` (a flag, or a string with named
+    choices) beyond the ones with a family of their own: each new switch gets its ablation rows."""
+    import dataclasses
+
+    from nrmlc.tracker.params import TrackerParams
+
+    default = TrackerParams()
+    return [(field.name.replace("_", " "), field.name) for field in dataclasses.fields(TrackerParams)
+            if field.name not in OWN_FAMILIES and isinstance(getattr(default, field.name), (str, bool))
+            and len(_choices(field.name)) > 1]
 
 
 def families(context) -> list[tuple[str, list[tuple[str, object]]]]:
@@ -83,17 +98,16 @@ def families(context) -> list[tuple[str, list[tuple[str, object]]]]:
     out = [
         ("coding", [("regularized (paper)", base), ("constrained", base.replace(coding="constrained")),
                     ("plain (λ = β = 0)", plain_params(base))]),
-        ("dictionaries", [(f"multiple k = {tuple(base.dictionary_sizes)} (paper)", base)]
+        ("dictionary sizes", [(f"multiple k = {tuple(base.dictionary_sizes)} (paper)", base)]
          + [(f"single k = {k}", base.replace(dictionary_sizes=(k,))) for k in (5, 8, 10)]),
         ("occlusion detection", [("on (paper)", base), ("off", base.replace(occlusion_detection=False))]),
         ("confidence", [("corrected (default)", base.replace(confidence="corrected")),
                         ("literal (as printed)", base.replace(confidence="literal"))]),
     ]
-    for family, field in SWITCHES:
-        if field in fields:
-            current = getattr(base, field)
-            out.append((family, [(f"{current} (default)", base)]
-                        + [(choice, base.replace(**{field: choice})) for choice in _choices(field) if choice != current]))
+    for family, field in switches():
+        current = getattr(base, field)
+        out.append((family, [(f"{current} (default)", base)]
+                    + [(str(choice), base.replace(**{field: choice})) for choice in _choices(field) if choice != current]))
     if hasattr(TrackerParams, "paper"):
         paper_preset = TrackerParams.paper()
         if paper_preset != base:

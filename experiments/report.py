@@ -46,7 +46,9 @@ def header(context, seconds: float | None = None, grid: dict | None = None) -> s
         f"- Seeds: Tables I/II and Fig. 3 {list(context.seeds)}; λ sweep and per-sequence motion "
         f"{list(context.sweep_seeds)}; ablations and re-centring {list(context.ablation_seeds)}",
         f"- Frame cap: {context.max_frames if context.max_frames else 'none (every frame)'}",
-        f"- Tracker parameters: {'the paper defaults' if not changed else 'paper defaults except ' + str(changed)}",
+        f"- Tracker parameters: the 'default' preset{'' if not changed else ' except ' + str(changed)} "
+        f"(Tables I/II, Figs. 3/4, ablations); the 'paper' preset for the checks of the paper's own claims "
+        f"(Theorem 1, Figs. 1/2, statistics, occlusion)",
         f"- Code version (hash of the sources that decide the boxes): `{code_version()}`; packages: "
         + ", ".join(f"{name} {version}" for name, version in package_versions().items()),
         f"- Date: {datetime.datetime.now().astimezone().isoformat(timespec='seconds')}; {platform.machine()}",
