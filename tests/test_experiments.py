@@ -271,3 +271,29 @@ def test_context_from_args_options(tmp_path):
     spec = context.specs(context.sequences()[:1])[0]
     assert spec.n_frames == 7 and spec.params.lam == 0.5
     assert np.isfinite(context.sequences()[0].init_box).all()
+
+
+def test_every_switch_has_ablation_rows(monkeypatch):
+    """Each flag or named-choice field of TrackerParams is varied by some ablation family, each
+    non-default row changing only what its family is about."""
+    import dataclasses
+
+    from experiments.ablations import families
+    from experiments.grid import Context
+    from experiments.grid import params_differences
+    from nrmlc.tracker.params import TrackerParams
+
+    monkeypatch.delenv("NRMLC_DATA", raising=False)
+    context = Context()
+    base = context.base_params
+    varied = set()
+    for family, configs in families(context):
+        assert configs[0][1] == base, family  # the first row is the default tracker
+        for label, params in configs[1:]:
+            changed = params_differences(params, base)
+            assert changed, (family, label)
+            if family != "preset":
+                varied |= set(changed)
+    switches = {f.name for f in dataclasses.fields(TrackerParams)
+                if isinstance(getattr(TrackerParams(), f.name), (str, bool))}
+    assert switches <= varied, switches - varied
