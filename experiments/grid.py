@@ -3,16 +3,18 @@ and the one shape every experiment script has.
 
 Every script in :data:`experiments.run_all.SCRIPTS` defines
 
-- ``STEM`` and ``TITLE``;
+- ``STEM``: the stem of its outputs;
 - ``runs(context)``: every job it reads (tracking runs, live OpenCV runs,
   recorded internals), so that ``run_all`` computes the whole grid in one pool;
 - ``collect(context) -> data``: the numbers, from the cached jobs;
 - ``plot(data, path)``: the figure ``<STEM>.png``;
 - ``report(context, data) -> section``: writes ``<STEM>.csv/.json`` and returns
   its section of ``REPORT.md`` (``title``, ``figures``, ``markdown``);
-- ``main(argv=None)``: ``return script_main(__name__, argv)``, so that
+- ``main(argv=None)`` (``functools.partial(script_main, __name__)``), so that
   ``python -m experiments.fig4_lambda_sweep --data ../shared/data/sequences``
   works alone, with the options of ``make figures``.
+
+:func:`run_script` is what ``run_all`` does with each of them.
 """
 from __future__ import annotations
 
@@ -313,6 +315,8 @@ def context_from_namespace(args) -> Context:
         context.cache = RunCache(Path(args.cache).resolve())
     if getattr(args, "peers", None):
         context.peer_root = Path(args.peers).resolve()
+        if not context.peer_root.is_dir():
+            raise DataError(f"--peers {args.peers}: folder not found")
     return context
 
 

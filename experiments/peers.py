@@ -297,7 +297,8 @@ def shipped_for(context, sequences=None) -> tuple[dict, list]:
     notes: list = []
     if root is None:
         if not context.is_synthetic:
-            notes.append(f"no shipped peer results found ({context.data_root.parent / 'peer_results'} missing)")
+            notes.append(f"no shipped peer results found ({context.peer_root or context.data_root.parent / 'peer_results'}"
+                         " missing)")
         return table, notes
     for sequence in sequences:
         shipped = shipped_results(root, sequence)

@@ -297,3 +297,13 @@ def test_every_switch_has_ablation_rows(monkeypatch):
     switches = {f.name for f in dataclasses.fields(TrackerParams)
                 if isinstance(getattr(TrackerParams(), f.name), (str, bool))}
     assert switches <= varied, switches - varied
+
+
+def test_peers_option(tmp_path, monkeypatch):
+    from nrmlc.errors import DataError
+
+    monkeypatch.delenv("NRMLC_DATA", raising=False)
+    assert context_from_args(["--peers", str(tmp_path)]).shipped_peer_root() == tmp_path
+    with pytest.raises(DataError, match="--peers"):
+        context_from_args(["--peers", str(tmp_path / "absent")])
+    assert run_all.main(["--peers", str(tmp_path / "absent"), "--dry-run"]) == 2
