@@ -166,9 +166,11 @@ def _squared_norm(vector):
     return total
 
 
-@njit(**PARALLEL_FLAGS)
+@njit(**NUMBA_FLAGS)
 def _squared_norms(vectors, out):
-    for i in prange(vectors.shape[0]):
+    # On the calling thread: ~0.1 ms for 600 x 1024, while a parallel region that
+    # waits for a thread which lost its core (a busy machine) measured 0.6 ms.
+    for i in range(vectors.shape[0]):
         out[i] = _squared_norm(vectors[i])
 
 
