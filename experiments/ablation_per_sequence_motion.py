@@ -164,8 +164,10 @@ def report(context, data: dict) -> dict:
                             "(Car4, Caviar1, Occlusion1, Occlusion2); nothing to compare."}
     text = [f"Mean overlap (± std over seeds {data['seeds']}) with nrmlc's one default motion model and with the "
             "per-sequence `affsig` of the paper's lineage, converted to our convention (diagnostic only; "
-            "not a default).", "",
-            "| sequence | motion sigmas (classic, ours) | default | per-sequence | paper |", "|---|---|---|---|---|"]
+            "not a default)." + (f" First {context.max_frames} frames of each sequence only." if context.max_frames else ""),
+            "",
+            "| sequence | motion sigmas (classic, ours) | default | per-sequence | "
+            f"paper{' (full seq.)' if context.max_frames else ''} |", "|---|---|---|---|---|"]
     for r in data["rows"]:
         sigmas = ", ".join(f"{v:g}" for v in r["motion_sigmas_classic"])
         text.append(f"| {r['sequence']} | {sigmas} | {fmt(r['overlap_default'], 2, r['overlap_default_std'])} | "

@@ -45,8 +45,7 @@ from experiments.fig4_lambda_sweep import plain_params
 from nrmlc import io
 
 STEM = "ablations"
-TITLE = ("Ablations: constraint vs regularisation, dictionaries, occlusion detection, confidence, and the "
-         "unstated scale noise, particle count and template radii")
+TITLE = "Ablations: constraint vs regularisation, every switch beyond the paper, and the values it leaves unstated"
 
 #: Relative scale noise per frame (motion_sigmas[2]) of the scale-noise family.
 SCALE_SIGMAS = (0.0025, 0.005, 0.01, 0.02)

@@ -119,7 +119,7 @@ def report(context, data: dict) -> dict:
     names = ", ".join(f"{n} ({paper_name(n)})" if paper_name(n) not in (None, n) else n for n in data["sequences"])
     header = "| | " + " | ".join(p["label"].replace("lambda", "λ").replace("beta", "β") for p in data["points"]) + " |"
     measured = "| measured | " + " | ".join(fmt(p["overlap"], 3, p["overlap_std"]) for p in data["points"]) + " |"
-    paper_row = "| paper (12 seq.) | " + " | ".join(
+    paper_row = f"| paper (12 seq.{', full sequences' if context.max_frames else ''}) | " + " | ".join(
         "0.70" if (p["coding"] == "regularized" and p["lam"] == paper.FIG4_BEST_LAMBDA) else
         (f"{paper.FIG4_NO_REGULARISATION_OVERLAP}" if p["coding"] == "plain" else "–") for p in data["points"]) + " |"
     text = [f"Average overlap over {names}; mean ± std over sweep seeds {data['seeds']}"
