@@ -347,3 +347,36 @@ def test_progress_lines_when_not_a_terminal():
     silent = io.StringIO()
     runner.Progress(10, 1, enabled=False, stream=silent).close()
     assert silent.getvalue() == ""
+
+
+def test_compile_notice_is_given_once_and_only_when_compiling(monkeypatch):
+    import io
+
+    monkeypatch.setattr(runner, "warm_up", lambda: None)
+    for cached, expected in ((True, ""), (False, "compiling the numba kernels")):
+        monkeypatch.setattr(runner, "_kernels_ready", False)
+        monkeypatch.setattr(runner, "kernels_cached", lambda cached=cached: cached)
+        stream = io.StringIO()
+        runner.prepare_kernels(stream)
+        runner.prepare_kernels(stream)  # once per process
+        text = stream.getvalue()
+        assert (expected in text) if expected else text == ""
+        if expected:
+            assert text.count("compiling") == 1 and "not counted as tracking time" in text
+            assert "kernels compiled in" in text
+
+
+def test_kernels_cached_follows_numba_index_files(tmp_path, monkeypatch):
+    package = tmp_path / "nrmlc"
+    (package / "__pycache__").mkdir(parents=True)
+    source = package / "kern.py"
+    source.write_text("from numba import njit\n\n@njit(cache=True)\ndef f(x):\n    return x\n")
+    (package / "plain.py").write_text('"""Mentions @njit and cache=True in prose only."""\n')
+    monkeypatch.setattr(runner, "__file__", str(package / "runner.py"))
+    assert not runner.kernels_cached()
+    index = package / "__pycache__" / "kern.f-3.py311.nbi"
+    index.write_bytes(b"")
+    os.utime(index, (source.stat().st_mtime + 10,) * 2)
+    assert runner.kernels_cached()
+    os.utime(source, (source.stat().st_mtime + 20,) * 2)  # the source changed after compiling
+    assert not runner.kernels_cached()
