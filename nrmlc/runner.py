@@ -226,19 +226,38 @@ def prepare_kernels(stream=None) -> float:
     return seconds
 
 
-def _worker_init() -> None:
+def _exit_with(parent: int, every: float = 2.0) -> None:
+    """End this worker when process ``parent`` is gone: a pool's workers outlive a killed
+    parent (SIGKILL runs no clean-up) and would hold their cores and memory otherwise."""
+    while True:
+        time.sleep(every)
+        try:
+            os.kill(parent, 0)
+        except ProcessLookupError:
+            os._exit(1)
+        except PermissionError:  # alive, someone else's (cannot happen for our parent)
+            pass
+
+
+def _worker_init(parent: int | None = None) -> None:
+    import threading
+
     from nrmlc.config import set_threads
 
+    if parent is not None:
+        threading.Thread(target=_exit_with, args=(parent,), name="exit-with-parent", daemon=True).start()
     set_threads(1)
     warm_up()
 
 
 def process_pool(workers: int) -> futures.ProcessPoolExecutor:
     """A pool of ``workers`` single-threaded, warmed-up processes started from a fresh
-    interpreter (forkserver, else spawn): safe after this process used OpenMP."""
+    interpreter (forkserver, else spawn): safe after this process used OpenMP. They end
+    themselves within seconds if this process is killed."""
     methods = multiprocessing.get_all_start_methods()
     context = multiprocessing.get_context("forkserver" if "forkserver" in methods else "spawn")
-    return futures.ProcessPoolExecutor(max_workers=workers, mp_context=context, initializer=_worker_init)
+    return futures.ProcessPoolExecutor(max_workers=workers, mp_context=context, initializer=_worker_init,
+                                       initargs=(os.getpid(),))
 
 
 # ------------------------------------------------------------------- progress

@@ -380,3 +380,72 @@ def test_kernels_cached_follows_numba_index_files(tmp_path, monkeypatch):
     assert runner.kernels_cached()
     os.utime(source, (source.stat().st_mtime + 20,) * 2)  # the source changed after compiling
     assert not runner.kernels_cached()
+
+
+ORPHAN_SCRIPT = """
+import os, sys, time
+import nrmlc.runner as runner
+
+
+class Sleeper:
+    folder, uses_kernels, label = "", False, "sleeper"
+
+    def __init__(self, k):
+        self.k = k
+
+    def key(self, version):
+        return f"sleeper-{self.k}"
+
+    def description(self, version):
+        return {"k": self.k}
+
+    def frames(self):
+        return 1
+
+    def execute(self):
+        with open(os.path.join(sys.argv[2], f"{os.getpid()}.pid"), "w") as handle:
+            handle.write("running")
+        time.sleep(120)
+        return {}
+
+    def result(self, arrays):
+        return arrays
+
+
+if __name__ == "__main__":
+    runner.RunCache(sys.argv[1]).run([Sleeper(0), Sleeper(1)], jobs=2, progress=False)
+"""
+
+
+def test_pool_workers_end_when_their_parent_is_killed(tmp_path):
+    """SIGKILL runs no clean-up: the workers must notice on their own, not hold the cores for good."""
+    script, pids = tmp_path / "grid.py", tmp_path / "pids"
+    script.write_text(ORPHAN_SCRIPT)
+    pids.mkdir()
+    env = dict(os.environ, PYTHONPATH=str(REPO_ROOT), PYTHONHASHSEED="0")
+    process = subprocess.Popen([sys.executable, str(script), str(tmp_path / "cache"), str(pids)], env=env,
+                               stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    try:
+        deadline = time.monotonic() + 120
+        while len(list(pids.iterdir())) < 2:
+            assert process.poll() is None and time.monotonic() < deadline, "the workers never started"
+            time.sleep(0.1)
+    finally:
+        process.kill()
+        process.wait(timeout=30)
+    workers = [int(path.stem) for path in pids.iterdir()]
+
+    def alive(pid):
+        try:
+            os.kill(pid, 0)
+        except ProcessLookupError:
+            return False
+        return True
+
+    deadline = time.monotonic() + 20
+    while any(alive(pid) for pid in workers) and time.monotonic() < deadline:
+        time.sleep(0.2)
+    left = [pid for pid in workers if alive(pid)]
+    for pid in left:  # do not leave them behind when the test fails
+        os.kill(pid, signal.SIGKILL)
+    assert not left
