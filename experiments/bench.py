@@ -158,8 +158,10 @@ STAGES = {
     "nearest_templates": "nearest templates",
     "encode_dictionaries": "coding",
     "combine_dictionaries": "weights + confidence",
+    "code_candidates": "norms, nearest, coding, weights (one pass)",
     "template_gram": "template Gram",
 }
+ONE_PASS_STAGE = STAGES["code_candidates"]
 TEMPLATE_STAGE = "template update (amortised)"
 OTHER_STAGE = "between the kernels (Python, numpy)"
 
@@ -242,6 +244,27 @@ def _frames(sequence, n_frames: int, color: bool = False) -> list:
     return [read(i) for i in range(min(n_frames, len(sequence)))]
 
 
+def _one_pass_parts(args: tuple, repeats: int) -> dict:
+    """Floors (ms per call) of the four kernels that ``code_candidates`` fuses, on its inputs."""
+    from nrmlc.kernels.coding import combine_dictionaries, encode_dictionaries
+    from nrmlc.kernels.distance import nearest_templates, squared_norms
+
+    candidates, dots, gram, t_norms, sizes, n_positive, ridge_c, ridge_w, constrained, n_iterations = args
+    k_max = int(np.max(sizes))
+    sq = squared_norms(candidates)
+    neighbours, _ = nearest_templates(dots, sq, t_norms, k_max)
+    coefficients = encode_dictionaries(gram, dots, sq, neighbours, sizes, ridge_c, constrained)
+    return {
+        "squared norms": measure(lambda: squared_norms(candidates), repeats)["ms"],
+        "nearest templates": measure(lambda: nearest_templates(dots, sq, t_norms, k_max), repeats)["ms"],
+        "coding": measure(lambda: encode_dictionaries(gram, dots, sq, neighbours, sizes, ridge_c, constrained),
+                          repeats)["ms"],
+        "weights + confidence": measure(lambda: combine_dictionaries(gram, dots, sq, neighbours, coefficients, sizes,
+                                                                     n_positive, ridge_w, constrained, n_iterations),
+                                        repeats)["ms"],
+    }
+
+
 def bench_stages(sequence, counts, warm_frames: int = 20, timed_frames: int = 60, floor_repeats: int = 15) -> list:
     """Per-stage ms per frame inside real ``update`` calls, and each stage's floor (ms per frame)."""
     from nrmlc.tracker.nrmlc_tracker import NRMLCTracker
@@ -265,12 +288,17 @@ def bench_stages(sequence, counts, warm_frames: int = 20, timed_frames: int = 60
             per_frame = {key: 1e3 * seconds / timed_frames for key, seconds in timer.seconds.items()}
             calls = {key: count / timed_frames for key, count in timer.calls.items()}
             floors = {key: timer.floor(key, floor_repeats) * calls[key] for key in calls if key in timer.last_call}
+            one_pass = timer.last_call.get((ONE_PASS_STAGE, False))
         finally:
             timer.restore()
         top = [(label, False) for label in STAGES.values() if (label, False) in per_frame]
         for key in top:
             rows.append({"n_particles": n, "stage": key[0], "ms": per_frame[key], "calls_per_frame": calls[key],
                          "floor_ms": floors[key]})
+            if key[0] == ONE_PASS_STAGE and one_pass is not None:
+                rows += [{"n_particles": n, "stage": f"  of which, alone: {label}", "ms": None, "part": True,
+                          "calls_per_frame": calls[key], "floor_ms": ms * calls[key]}
+                         for label, ms in _one_pass_parts(one_pass[1], floor_repeats).items()]
         update_key = (TEMPLATE_STAGE, False)
         if update_key in per_frame:
             parts = [key for key in floors if key[1]]
@@ -278,7 +306,7 @@ def bench_stages(sequence, counts, warm_frames: int = 20, timed_frames: int = 60
                          "calls_per_frame": calls[update_key], "floor_ms": sum(floors[key] for key in parts),
                          "floor_of": [key[0] for key in parts]})
             top.append(update_key)
-        kernel_floor = sum(row["floor_ms"] for row in rows if row["n_particles"] == n)
+        kernel_floor = sum(row["floor_ms"] for row in rows if row["n_particles"] == n and not row.get("part"))
         rows.append({"n_particles": n, "stage": OTHER_STAGE, "ms": frame_ms - sum(per_frame[key] for key in top),
                      "calls_per_frame": None, "floor_ms": None})
         rows.append({"n_particles": n, "stage": "whole frame", "ms": frame_ms, "calls_per_frame": 1.0,
@@ -703,15 +731,18 @@ def _markdown(result: dict) -> str:
               "In real `update` calls, against the floor of each stage: the same call on the same inputs timed "
               "alone (median), times its calls per frame. Template updates happen every few frames; their time is "
               "spread over all frames, and their floor is that of their parts (warps, Gram) timed alone. The whole "
-              "frame's floor is the sum of the stage floors; the Python and numpy between the kernels have none.", "",
+              "frame's floor is the sum of the stage floors; the Python and numpy between the kernels have none. "
+              "Rows \"of which, alone\" time the four kernels that the one pass fuses, each alone on the same "
+              "inputs (the one pass does their work with one meeting of the threads instead of four).", "",
               "| N | stage | ms in the frame | floor ms | in frame / floor | calls per frame |",
               "|---:|---|---:|---:|---:|---:|"]
     for row in result["stages"]:
         floor = f"{row['floor_ms']:.3f}" if row.get("floor_ms") else ""
-        ratio = f"{row['ms'] / row['floor_ms']:.2f}" if row.get("floor_ms") else ""
+        ratio = f"{row['ms'] / row['floor_ms']:.2f}" if row.get("floor_ms") and row["ms"] is not None else ""
         calls = f"{row['calls_per_frame']:.2f}" if row.get("calls_per_frame") is not None else ""
         stage = f"**{row['stage']}** ({row['fps']:.1f} fps)" if row["stage"] == "whole frame" else row["stage"]
-        lines.append(f"| {row['n_particles']} | {stage} | {row['ms']:.3f} | {floor} | {ratio} | {calls} |")
+        in_frame = "" if row["ms"] is None else f"{row['ms']:.3f}"
+        lines.append(f"| {row['n_particles']} | {stage} | {in_frame} | {floor} | {ratio} | {calls} |")
     lines += ["", "## End to end (decoding excluded; medians of alternating rounds)", "",
               "| sequence | tracker | frames | fps | rounds (fps) | fps with decoding |",
               "|---|---|---:|---:|---|---:|"]
