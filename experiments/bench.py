@@ -38,6 +38,7 @@ from __future__ import annotations
 import argparse
 import copy
 import json
+import math
 import os
 import platform
 import subprocess
@@ -92,6 +93,39 @@ def compare(name: str, fps: float, other: str, other_fps: float) -> str:
     return f"{name} is {1.0 / ratio:.2f}x slower than {other}"
 
 
+def _parallel_speedup(repeats: int = 5) -> float | None:
+    """How much faster a compute-bound numba loop runs on all threads than on one, right now.
+
+    About the core count on an idle machine, about 1 when other processes hold the other
+    cores: it says how many cores the bench's parallel numbers actually had.
+    """
+    import numba
+
+    from nrmlc.config import PARALLEL_FLAGS
+
+    @numba.njit(**dict(PARALLEL_FLAGS, cache=False))  # a closure: numba cannot cache it
+    def spin(out):
+        for i in numba.prange(out.shape[0]):
+            value = 0.0
+            for k in range(20000):
+                value += math.sin(value + k)
+            out[i] = value
+
+    threads = numba.get_num_threads()
+    if threads < 2:
+        return None
+    out = np.empty(8 * threads)
+    spin(out)
+    times = {}
+    try:
+        for n in (1, threads):
+            numba.set_num_threads(n)
+            times[n] = measure(lambda: spin(out), repeats)["ms"]
+    finally:
+        numba.set_num_threads(threads)
+    return times[1] / times[threads]
+
+
 def _load() -> dict:
     """Load averages and the share of CPU time idle over the last 0.5 s (all cores)."""
     def ticks():
@@ -103,9 +137,10 @@ def _load() -> dict:
         time.sleep(0.5)
         idle_1, total_1 = ticks()
         idle = (idle_1 - idle_0) / max(total_1 - total_0, 1.0)
-        return {"load_average": [round(v, 2) for v in os.getloadavg()], "idle_share": round(idle, 3)}
+        return {"load_average": [round(v, 2) for v in os.getloadavg()], "idle_share": round(idle, 3),
+                "parallel_speedup": _parallel_speedup()}
     except OSError:  # pragma: no cover - not Linux
-        return {"load_average": None, "idle_share": None}
+        return {"load_average": None, "idle_share": None, "parallel_speedup": _parallel_speedup()}
 
 
 # ---------------------------------------------------------------------------
@@ -712,6 +747,11 @@ def _summary(result: dict) -> list[str]:
     return lines
 
 
+def _speedup_text(load: dict) -> str:
+    speedup = load.get("parallel_speedup")
+    return "n/a" if speedup is None else f"{speedup:.2f}x"
+
+
 def _markdown(result: dict) -> str:
     m = result["machine"]
     blas = ", ".join(str(b["num_threads"]) for b in m["blas"])
@@ -723,7 +763,10 @@ def _markdown(result: dict) -> str:
              f"Machine load before / after: load average {result['load_before']['load_average']} / "
              f"{result['load_after']['load_average']}, idle share {result['load_before']['idle_share']} / "
              f"{result['load_after']['idle_share']} (other processes shared the machine when the idle share is "
-             "well below 1). Compare ratios within this run.", "",
+             "well below 1); all threads against one on a compute-bound loop: "
+             f"{_speedup_text(result['load_before'])} / {_speedup_text(result['load_after'])} faster (about the "
+             "core count when the cores are free, about 1 when other processes hold them). "
+             "Compare ratios within this run.", "",
              "## Summary", ""]
     lines += [f"- {line}" for line in result["summary"]]
     stage_sequence = result.get("stage_sequence", "")
