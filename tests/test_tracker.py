@@ -41,7 +41,7 @@ def test_got10k_interface_tracks_the_synthetic_target(sequence, tracked):
 
 
 def test_paper_defaults():
-    p = TrackerParams()
+    p = TrackerParams.paper()
     assert (p.n_positive, p.n_negative, p.dictionary_sizes) == (50, 150, (5, 8, 10))
     assert (p.lam, p.beta, p.n_iterations, p.alpha) == (1.0, 0.1, 3, 2.5)
     assert (p.update_interval, p.max_positive, p.update_error_threshold, p.patch_size) == (5, 100, 0.1, 32)
