@@ -49,6 +49,7 @@ SCRIPTS = (
     "experiments.ablations",
     "experiments.ablation_per_sequence_motion",
     "experiments.ablation_oracle_recentring",
+    "experiments.failure_mechanisms",
 )
 
 #: Aggregate tracking speed of the default pool for the time estimate: measured on this

@@ -1,0 +1,359 @@
+"""Failure mechanisms (issue 11, section 3): how often each one occurs, per sequence, for the
+default tracker and the paper preset.
+
+Per run (frame 0, the given box, excluded throughout):
+
+1. **no positive among the nearest**: share of frames whose best candidate has
+   eps_pos* >= :data:`NO_POSITIVE` (its k nearest templates are all negatives, so
+   eps_pos = |y|^2 = 1 and the ranking rests on eps_neg alone);
+2. **occlusion flag**: share of frames with LEN(neg*) > occlusion_max_negative, and
+   positive-template updates per 100 frames;
+3. **scale drift**: sqrt(box area / ground-truth area) on the annotated frames, its
+   median over all of them and over the last :data:`LAST_SHARE` of them;
+4. **loss of lock**: the first annotated frame that starts :data:`LOST_RUN` consecutive
+   annotated frames with IoU < :data:`LOST_IOU`, as a fraction of the frames tracked
+   (none if no such run);
+5. mean overlap (as in Table II), for context.
+
+Per sequence and configuration, the mean over seeds (loss of lock: in how many runs,
+and the mean fraction of the sequence held, 1 for a run that never loses lock).
+
+Configurations and runs, all shared with other scripts through the run cache:
+
+- the 'default' preset (``context.base_params``) over ``context.seeds``: Tables I/II's
+  runs, on the paper's sequences and the development sequences alike;
+- the 'paper' preset (``context.paper_params()``) over ``context.ablation_seeds``: the
+  ablations' preset row on the paper's sequences; on the development sequences these
+  runs are this script's own (about 4,200 frames per ablation seed).
+
+Sequences: the paper's (:data:`~experiments.sequence_sets.PAPER_SEQUENCES`) and the
+development ones (:data:`~experiments.sequence_sets.DEVELOPMENT_SEQUENCES`) that are
+given; the synthetic suite without data. Diagnostic only: no default is chosen here.
+
+Outputs ``failure_mechanisms.{png,csv,json}``.
+"""
+from __future__ import annotations
+
+import functools
+import math
+import sys
+
+import numpy as np
+
+from experiments.grid import score, script_main
+from experiments.internals import describe_params
+from experiments.tables import clean, fmt, mean_std, save_figure, write_csv
+from nrmlc import io
+
+STEM = "failure_mechanisms"
+TITLE = "Failure mechanisms: no positive template among the nearest, occlusion flag, scale drift, loss of lock"
+
+#: eps_pos* at or above this: no positive template among the best candidate's nearest
+#: (eps_pos = |y|^2 = 1 for unit patches; a little below 1 for rounding).
+NO_POSITIVE = 0.999
+#: Loss of lock: IoU below this ...
+LOST_IOU = 0.1
+#: ... on this many consecutive annotated frames.
+LOST_RUN = 10
+#: Scale drift "at the end": the last this share of the annotated frames (at least one).
+LAST_SHARE = 0.1
+#: Per-configuration numbers: (key, short column name, decimals).
+MEASURES = (("no_positive", "no positive among nearest", 3), ("occluded", "occlusion flag", 3),
+            ("updates_per_100", "positive updates / 100 fr.", 1), ("scale_median", "scale ratio, median", 2),
+            ("scale_last", "scale ratio, last 10%", 2), ("held", "share held before loss of lock", 2),
+            ("overlap", "mean overlap", 3))
+
+
+def configurations(context) -> list[tuple[str, object, tuple]]:
+    """(name, TrackerParams, seeds) of the two configurations, with the seeds that make
+    their runs those already in the grid (Tables I/II's, the ablations' preset row)."""
+    return [("default", context.base_params, tuple(context.seeds)),
+            ("paper", context.paper_params(), tuple(context.ablation_seeds))]
+
+
+def blocks(context) -> list[tuple[str, list]]:
+    """(block label, sequences): the paper's given sequences, then the development ones."""
+    out = [("paper's sequences" if not context.is_synthetic else "synthetic suite", context.paper_sequences())]
+    if context.development_sequences():
+        out.append(("development sequences", context.development_sequences()))
+    return [(label, list(seqs)) for label, seqs in out if seqs]
+
+
+def _specs(context, name: str, params, seeds) -> list:
+    sequences = [s for _, seqs in blocks(context) for s in seqs]
+    return context.specs(sequences, params, seeds, label=f"failure mechanisms: {name}")
+
+
+def runs(context) -> list:
+    """Both configurations on every sequence of :func:`blocks`, each with its own seeds."""
+    return [spec for name, params, seeds in configurations(context) for spec in _specs(context, name, params, seeds)]
+
+
+def lock_lost_at(overlaps, frames, iou: float = LOST_IOU, run: int = LOST_RUN) -> int | None:
+    """The first frame that starts ``run`` consecutive evaluated frames with IoU < ``iou``.
+
+    Parameters
+    ----------
+    overlaps : (n,) float
+        IoU of the evaluated (annotated) frames, in order.
+    frames : (n,) int
+        Their 0-based frame indices.
+
+    Returns
+    -------
+    int or None
+        That frame's index, or None when no such run exists.
+    """
+    low = np.asarray(overlaps, dtype=np.float64) < iou
+    if low.size < run:
+        return None
+    # Windows of `run` consecutive entries that are all low: a moving sum equal to `run`.
+    counts = np.convolve(low.astype(np.int64), np.ones(run, dtype=np.int64), mode="valid")
+    hits = np.flatnonzero(counts == run)
+    return int(np.asarray(frames)[hits[0]]) if hits.size else None
+
+
+def run_measures(boxes, diagnostics: dict, sequence) -> dict:
+    """The five measures of one run (module docstring), frame 0 excluded.
+
+    Parameters
+    ----------
+    boxes : (n_frames, 4) float
+        The run's 1-based OTB boxes, row 0 the given box.
+    diagnostics : dict of str -> (n_frames, ...) arrays
+        :attr:`nrmlc.tracker.run.TrackResult.diagnostics` (``error_positive``,
+        ``occluded``, ``updated_positive``).
+    sequence : Sequence
+        Its ground truth scores the run (:func:`experiments.grid.score`).
+
+    Returns
+    -------
+    dict
+        ``no_positive``, ``occluded``, ``updates_per_100``, ``scale_median``,
+        ``scale_last``, ``lost_frame`` (None if lock is never lost), ``lost_fraction``,
+        ``held`` (``lost_fraction``, or 1 if never lost), ``overlap``, ``n_frames``.
+    """
+    boxes = np.asarray(boxes, dtype=np.float64)
+    n = len(boxes)
+    steps = max(n - 1, 1)
+    error_positive = np.asarray(diagnostics["error_positive"], dtype=np.float64)[1:n]
+    occluded = np.asarray(diagnostics["occluded"], dtype=bool)[1:n]
+    updated = np.asarray(diagnostics["updated_positive"], dtype=bool)[1:n]
+    evaluation = score(boxes, sequence)
+    frames = np.asarray(evaluation.frames)
+    truth = np.asarray(sequence.groundtruth, dtype=np.float64)[frames]
+    predicted = boxes[frames]
+    with np.errstate(invalid="ignore", divide="ignore"):
+        ratio = np.sqrt(np.abs(predicted[:, 2] * predicted[:, 3]) / (truth[:, 2] * truth[:, 3]))
+    last = max(1, math.ceil(LAST_SHARE * len(ratio)))
+    lost = lock_lost_at(evaluation.overlaps, frames)
+    fraction = None if lost is None else lost / n
+    return {"no_positive": float(np.mean(error_positive >= NO_POSITIVE)) if error_positive.size else math.nan,
+            "occluded": float(np.mean(occluded)) if occluded.size else math.nan,
+            "updates_per_100": 100.0 * float(updated.sum()) / steps,
+            "scale_median": float(np.nanmedian(ratio)) if np.isfinite(ratio).any() else math.nan,
+            "scale_last": float(np.nanmedian(ratio[-last:])) if np.isfinite(ratio[-last:]).any() else math.nan,
+            "lost_frame": lost, "lost_fraction": fraction, "held": 1.0 if fraction is None else fraction,
+            "overlap": evaluation.mean_overlap, "n_frames": n}
+
+
+def aggregate(per_run: list[dict]) -> dict:
+    """Mean over seeds of every measure; loss of lock as a count and the mean fraction where lost."""
+    row = {key: mean_std(m[key] for m in per_run)[0] for key, _, _ in MEASURES}
+    lost = [m["lost_fraction"] for m in per_run if m["lost_fraction"] is not None]
+    row.update(n_runs=len(per_run), lost_runs=len(lost), lost_fraction=mean_std(lost)[0] if lost else None)
+    return row
+
+
+def collect(context) -> dict:
+    """``rows``: one per (block, sequence, configuration), with its per-seed measures."""
+    rows = []
+    configs = configurations(context)
+    for name, params, seeds in configs:
+        specs = _specs(context, name, params, seeds)
+        measured = {(s.sequence.name, s.seed): run_measures(r.boxes, r.diagnostics, s.sequence)
+                    for s, r in zip(specs, context.run(specs))}
+        for label, sequences in blocks(context):
+            for sequence in sequences:
+                per_seed = {seed: measured[(sequence.name, seed)] for seed in seeds}
+                rows.append(dict(aggregate(list(per_seed.values())), block=label, sequence=sequence.name,
+                                 config=name, seeds=list(seeds), per_seed=per_seed))
+    averages = {(label, name): {key: mean_std(r[key] for r in rows if r["block"] == label and r["config"] == name)[0]
+                                for key, _, _ in MEASURES}
+                for label, _ in blocks(context) for name, _, _ in configs}
+    return {"rows": rows, "averages": averages, "blocks": [(label, [s.name for s in seqs]) for label, seqs in blocks(context)],
+            "configs": [{"name": name, "params": describe_params(params), "seeds": list(seeds),
+                         "update_interval": params.update_interval}
+                        for name, params, seeds in configs],
+            "max_frames": context.max_frames,
+            "definitions": {"no_positive": NO_POSITIVE, "lost_iou": LOST_IOU, "lost_run": LOST_RUN,
+                            "last_share": LAST_SHARE}}
+
+
+def _row(data: dict, sequence: str, config: str) -> dict:
+    return next(r for r in data["rows"] if r["sequence"] == sequence and r["config"] == config)
+
+
+def plot(data: dict, path) -> None:
+    """One panel per measure, a bar per (sequence, configuration); scale: median (bar) and
+    last 10% (dot) on a log axis, 1 = the ground truth's size."""
+    import matplotlib.pyplot as plt
+
+    names = [n for _, seqs in data["blocks"] for n in seqs]
+    configs = [c["name"] for c in data["configs"]]
+    colours = {name: plt.get_cmap("tab10")(i) for i, name in enumerate(configs)}
+    panels = (("no_positive", "frames with no positive\namong the nearest", (0, 1)),
+              ("occluded", "frames with the\nocclusion flag", (0, 1)),
+              ("updates_per_100", "positive-template updates\nper 100 frames", None),
+              ("scale_median", "scale ratio √(box/GT area)\nbar: median, dot: last 10%", None),
+              ("held", "share of the sequence held\nbefore loss of lock (1: never lost)", (0, 1)),
+              ("overlap", "mean overlap", (0, 1)))
+    height = 0.8 / len(configs)
+    y = np.arange(len(names))
+    fig, axes = plt.subplots(1, len(panels), figsize=(17, max(3.4, 0.34 * len(names) + 1.6)), sharey=True)
+    for ax, (key, title, limits) in zip(axes, panels):
+        for i, config in enumerate(configs):
+            offset = (i - (len(configs) - 1) / 2) * height
+            values = np.array([_row(data, n, config)[key] for n in names], dtype=np.float64)
+            if key == "scale_median":
+                ax.barh(y + offset, values - 1.0, left=1.0, height=height, color=colours[config], alpha=0.85)
+                last = np.array([_row(data, n, config)["scale_last"] for n in names], dtype=np.float64)
+                ax.plot(last, y + offset, "o", ms=3.5, color="black", mfc=colours[config])
+            else:
+                ax.barh(y + offset, values, height=height, color=colours[config], alpha=0.85,
+                        label=f"{config} preset (seeds {_seeds(data, config)})" if ax is axes[0] else None)
+        if key == "scale_median":
+            from matplotlib.ticker import FixedLocator, NullFormatter, NullLocator
+
+            ax.set_xscale("log")
+            ax.axvline(1.0, color="0.3", lw=0.8)
+            ticks = [0.25, 0.5, 1, 2, 4]
+            ax.xaxis.set_major_locator(FixedLocator(ticks))
+            ax.xaxis.set_minor_locator(NullLocator())
+            ax.xaxis.set_minor_formatter(NullFormatter())
+            ax.set_xticklabels([f"{t:g}" for t in ticks])
+            ratios = np.array([r[k] for r in data["rows"] for k in ("scale_median", "scale_last")], dtype=np.float64)
+            ratios = ratios[np.isfinite(ratios) & (ratios > 0)]
+            ax.set_xlim(min(0.2, ratios.min(initial=1.0) / 1.3), max(5.0, ratios.max(initial=1.0) * 1.3))
+        elif limits is not None:
+            ax.set_xlim(*limits)
+        ax.set_title(title, fontsize=9)
+        ax.grid(axis="x", alpha=0.3)
+        ax.tick_params(labelsize=8)
+        start = 0
+        for _, seqs in data["blocks"][:-1]:
+            start += len(seqs)
+            ax.axhline(start - 0.5, color="0.4", ls="--", lw=0.8)
+    axes[0].set_yticks(y)
+    axes[0].set_yticklabels(names, fontsize=8)
+    axes[0].set_ylim(len(names) - 0.5, -0.5)
+    blocks_text = ", then ".join(f"{label} ({len(seqs)})" for label, seqs in data["blocks"])
+    cap = f"; first {data['max_frames']} frames only" if data.get("max_frames") else ""
+    fig.suptitle(f"Failure mechanisms per sequence, mean over seeds (from the top: {blocks_text}{cap})", fontsize=10)
+    fig.legend(loc="lower center", ncol=len(configs), fontsize=8, frameon=False)
+    bottom = 0.35 / fig.get_figheight()
+    save_figure(fig, path, dpi=100, rect=(0, bottom, 1, 1 - 0.3 / fig.get_figheight()))
+
+
+def _seeds(data: dict, config: str) -> list:
+    return next(c["seeds"] for c in data["configs"] if c["name"] == config)
+
+
+def _lost_text(row: dict) -> str:
+    if not row["lost_runs"]:
+        return f"0/{row['n_runs']}"
+    return f"{row['lost_runs']}/{row['n_runs']} at {row['lost_fraction']:.2f}"
+
+
+def findings(data: dict) -> list[str]:
+    """A few plain statements computed from the numbers (none hard-coded)."""
+    rows = data["rows"]
+    configs = [c["name"] for c in data["configs"]]
+    lines = []
+    for config in configs:
+        mine = [r for r in rows if r["config"] == config]
+        share = mean_std(r["no_positive"] for r in mine)[0]
+        worst = max(mine, key=lambda r: r["no_positive"] if math.isfinite(r["no_positive"]) else -1)
+        lost = [r["sequence"] for r in mine if r["lost_runs"]]
+        most = (f"most: {worst['sequence']}, {fmt(worst['no_positive'], 3)}" if worst["no_positive"] > 0
+                else "on no frame of any sequence")
+        lines.append(f"{config}: no positive among the nearest on {fmt(share, 3)} of frames on average "
+                     f"({most}); the occlusion flag on "
+                     f"{fmt(mean_std(r['occluded'] for r in mine)[0], 3)} of frames, "
+                     f"{fmt(mean_std(r['updates_per_100'] for r in mine)[0], 1)} positive updates per 100 frames; "
+                     f"lock lost in at least one run on {len(lost)} of {len(mine)} sequences"
+                     + (f" ({', '.join(lost)})." if lost else "."))
+    x = np.array([r["no_positive"] for r in rows], dtype=np.float64)
+    y = np.array([r["overlap"] for r in rows], dtype=np.float64)
+    ok = np.isfinite(x) & np.isfinite(y)
+    if ok.sum() >= 3 and np.std(x[ok]) > 0 and np.std(y[ok]) > 0:
+        r = float(np.corrcoef(x[ok], y[ok])[0, 1])
+        lines.append(f"Across the {int(ok.sum())} (sequence, configuration) rows, the share of frames with no positive "
+                     f"among the nearest and the mean overlap correlate with Pearson r = {r:.2f}.")
+    shrunk = sorted({r["sequence"] for r in rows if r["scale_last"] < 0.7})
+    grown = sorted({r["sequence"] for r in rows if r["scale_last"] > 1.0 / 0.7})
+    lines.append("Scale at the end (median ratio over the last 10% of annotated frames): below 0.7 on "
+                 + (", ".join(shrunk) if shrunk else "no sequence") + "; above 1/0.7 on "
+                 + (", ".join(grown) if grown else "no sequence") + " (either configuration).")
+    return lines
+
+
+def report(context, data: dict) -> dict:
+    """Write the numbers (CSV: a row per run and per mean; JSON); returns the report section."""
+    keys = [k for k, _, _ in MEASURES]
+    header = ["block", "sequence", "config", "seed"] + keys + ["lost_frame", "lost_fraction", "lost_runs", "n_runs"]
+    rows = []
+    for r in data["rows"]:
+        rows.append([r["block"], r["sequence"], r["config"], "mean"] + [r[k] for k in keys]
+                    + [None, r["lost_fraction"], r["lost_runs"], r["n_runs"]])
+        for seed, m in r["per_seed"].items():
+            rows.append([r["block"], r["sequence"], r["config"], seed] + [m[k] for k in keys]
+                        + [m["lost_frame"], m["lost_fraction"], None, 1])
+    write_csv(context.output(STEM, ".csv"), header, rows)
+    averages = {f"{label} / {config}": values for (label, config), values in data["averages"].items()}
+    io.write_json(context.output(STEM, ".json"), clean(dict(data, averages=averages, title=TITLE)))
+
+    configs = data["configs"]
+    most_updates = " / ".join(f"{100 / c['update_interval']:g}" for c in configs)
+    text = ["Per sequence, mean over seeds, frame 0 excluded: " + "; ".join(
+        f"**{c['name']}** = {c['params']}, seeds {c['seeds']}" for c in configs)
+        + (f"; first {data['max_frames']} frames only" if data.get("max_frames") else "") + ". "
+        f"Cells are {' / '.join(c['name'] for c in configs)}. *No pos.*: share of frames whose best candidate has "
+        f"eps_pos* >= {NO_POSITIVE} (its k nearest templates all negative). *Occl.*: share of frames with the "
+        "occlusion flag; *upd.*: positive-template updates per 100 frames (templates are updated every "
+        f"{' / '.join(str(c['update_interval']) for c in configs)} frames, so at most {most_updates}). *Scale*: median of √(box area / "
+        f"ground-truth area) over the annotated frames, then over the last {LAST_SHARE:.0%} of them. *Lock lost*: runs "
+        f"with {LOST_RUN} consecutive annotated frames at IoU < {LOST_IOU}, and the mean share of the sequence "
+        "before it. Diagnostic only: no default is chosen on these runs.", "",
+        "| sequence | no pos. | occl. | upd./100 | scale, median | scale, last 10% | lock lost | overlap |",
+        "|---" * 8 + "|"]
+
+    def cells(row_of, key, digits):
+        return " / ".join(fmt(row_of(c["name"])[key], digits) for c in configs)
+
+    for label, names in data["blocks"]:
+        text.append(f"| *{label}* |" + " |" * 7)
+        for name in names:
+            row_of = functools.partial(_row, data, name)
+            text.append(f"| {name} | " + " | ".join(
+                [cells(row_of, "no_positive", 2), cells(row_of, "occluded", 2), cells(row_of, "updates_per_100", 1),
+                 cells(row_of, "scale_median", 2), cells(row_of, "scale_last", 2),
+                 " / ".join(_lost_text(row_of(c["name"])) for c in configs), cells(row_of, "overlap", 2)]) + " |")
+        average = {c["name"]: data["averages"][(label, c["name"])] for c in configs}
+        text.append("| **average** | " + " | ".join(
+            " / ".join(fmt(average[c["name"]][key], digits) for c in configs)
+            for key, digits in (("no_positive", 2), ("occluded", 2), ("updates_per_100", 1), ("scale_median", 2),
+                                ("scale_last", 2), ("held", 2), ("overlap", 2)))
+                    + " |")
+    text.append("")
+    text.append("(average row, lock-lost column: mean share of the sequence held, 1 = never lost.)")
+    text.append("")
+    text += [f"- {line}" for line in findings(data)]
+    return {"title": TITLE, "figures": [f"{STEM}.png"], "markdown": "\n".join(text)}
+
+
+#: ``python -m experiments.<script> [options]``: this script alone, with the options of ``make figures``.
+main = functools.partial(script_main, __name__)
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,115 @@
+"""Tests for experiments/failure_mechanisms.py: the measures on hand-made runs whose answers are
+known, and the script end to end on a tiny synthetic grid."""
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from experiments import failure_mechanisms as script
+from experiments.grid import Context, context_from_args, run_script
+from nrmlc.data import synthetic_suite
+from nrmlc.runner import RunCache
+from nrmlc.tracker.run import TrackResult
+
+N = 40
+
+
+def hand_made_run(sequence, lose_at: int | None = 30) -> TrackResult:
+    """Frames 0-19 on the ground truth; 20-29 half its width and height about its centre
+    (IoU 0.25, scale ratio 0.5); from ``lose_at`` on, twice its size and far away (IoU 0,
+    ratio 2). eps_pos* = 1 on frames 1-10, occluded on 3 frames, 4 positive updates."""
+    truth = np.asarray(sequence.groundtruth[:N], dtype=np.float64)
+    boxes = truth.copy()
+    x, y, w, h = truth.T
+    half = np.stack([x + w / 4, y + h / 4, w / 2, h / 2], axis=1)
+    boxes[20:30] = half[20:30]
+    if lose_at is not None:
+        boxes[lose_at:] = np.stack([x + 1000, y + 1000, 2 * w, 2 * h], axis=1)[lose_at:]
+    error_positive = np.full(N, 0.05)
+    error_positive[0] = np.nan
+    error_positive[1:11] = 1.0
+    occluded = np.zeros(N, dtype=bool)
+    occluded[[3, 7, 12]] = True
+    updated = np.zeros(N, dtype=bool)
+    updated[[5, 10, 15, 20]] = True
+    diagnostics = {"error_positive": error_positive, "occluded": occluded, "updated_positive": updated}
+    return TrackResult(boxes=boxes, states=np.zeros((N, 6)), diagnostics=diagnostics)
+
+
+@pytest.fixture(scope="module")
+def sequence():
+    return synthetic_suite(n_frames=N, n_sequences=1)[0]
+
+
+def test_run_measures_by_hand(sequence):
+    run = hand_made_run(sequence)
+    m = script.run_measures(run.boxes, run.diagnostics, sequence)
+    assert m["no_positive"] == pytest.approx(10 / 39)
+    assert m["occluded"] == pytest.approx(3 / 39)
+    assert m["updates_per_100"] == pytest.approx(100 * 4 / 39)
+    # 19 ratios of 1 (frames 1-19), 10 of 0.5, 10 of 2: median 1; the last 4 frames (10% of 39): 2.
+    assert m["scale_median"] == pytest.approx(1.0)
+    assert m["scale_last"] == pytest.approx(2.0)
+    assert m["lost_frame"] == 30 and m["lost_fraction"] == pytest.approx(30 / N) and m["held"] == m["lost_fraction"]
+    assert m["overlap"] == pytest.approx((19 * 1.0 + 10 * 0.25) / 39)
+
+
+def test_lock_needs_ten_consecutive_low_frames(sequence):
+    # Nine far-away frames are not a loss of lock; the tenth makes one, starting at the first.
+    frames = np.arange(1, 31)
+    overlaps = np.ones(30)
+    overlaps[5:14] = 0.0
+    assert script.lock_lost_at(overlaps, frames) is None
+    overlaps[14] = 0.05
+    assert script.lock_lost_at(overlaps, frames) == 6
+    # Unannotated frames are skipped: consecutive annotated frames count, whatever their indices.
+    assert script.lock_lost_at(overlaps, frames * 10) == 60
+    run = hand_made_run(sequence, lose_at=None)
+    m = script.run_measures(run.boxes, run.diagnostics, sequence)
+    assert m["lost_frame"] is None and m["lost_fraction"] is None and m["held"] == 1.0
+
+
+def test_collect_averages_over_seeds(sequence, tmp_path):
+    """Two seeds for the default preset (one loses lock at frame 30, one never), one for the paper's."""
+    context = Context(seeds=(0, 1), ablation_seeds=(0,), figures_dir=tmp_path, max_frames=N,
+                      cache=RunCache(tmp_path / "cache"), _sequences=[sequence])
+    lost, held = hand_made_run(sequence), hand_made_run(sequence, lose_at=None)
+    context.run = lambda specs: [lost if spec.seed == 0 else held for spec in specs]
+    assert len(script.runs(context)) == 3
+    section = run_script(script, context)
+    data = json.loads((tmp_path / f"{script.STEM}.json").read_text())
+    rows = {r["config"]: r for r in data["rows"]}
+    default, paper = rows["default"], rows["paper"]
+    assert default["seeds"] == [0, 1] and paper["seeds"] == [0]
+    assert default["lost_runs"] == 1 and default["n_runs"] == 2
+    assert default["lost_fraction"] == pytest.approx(30 / N)
+    assert default["held"] == pytest.approx((30 / N + 1.0) / 2)
+    assert paper["lost_runs"] == 1 and paper["held"] == pytest.approx(30 / N)
+    assert default["scale_last"] == pytest.approx((2.0 + 1.0) / 2)  # lost: twice the size at the end; held: 1
+    assert default["no_positive"] == pytest.approx(10 / 39)
+    assert (tmp_path / f"{script.STEM}.png").stat().st_size > 0
+    csv = (tmp_path / f"{script.STEM}.csv").read_text().splitlines()
+    assert len(csv) == 1 + 2 + 3  # header, a mean row per configuration, a row per run
+    assert "1/2 at 0.75" in section["markdown"]
+
+
+def test_tiny_grid_end_to_end(tmp_path, monkeypatch):
+    """Real tracking on a tiny grid: runs() covers everything collect() reads (nothing more is
+    computed after the grid), and the numbers lie in their ranges."""
+    monkeypatch.delenv("NRMLC_DATA", raising=False)
+    context = context_from_args(["--seeds", "1", "--max-frames", "15", "--synthetic-sequences", "1",
+                                 "--param", "n_particles=100", "--jobs", "1", "--out", str(tmp_path / "out"),
+                                 "--cache", str(tmp_path / "cache")])
+    jobs = script.runs(context)
+    context.cache.ensure(jobs, jobs=1)
+    before = sorted(p.name for p in (tmp_path / "cache").rglob("*.npz"))
+    assert len(before) == 2
+    section = run_script(script, context)
+    assert sorted(p.name for p in (tmp_path / "cache").rglob("*.npz")) == before
+    data = json.loads((tmp_path / "out" / f"{script.STEM}.json").read_text())
+    for row in data["rows"]:
+        assert 0 <= row["no_positive"] <= 1 and 0 <= row["occluded"] <= 1 and 0 <= row["overlap"] <= 1
+        assert row["scale_median"] > 0 and 0 < row["held"] <= 1
+    assert section["title"] == script.TITLE and "| synth-01 |" in section["markdown"]
