@@ -72,11 +72,14 @@ def configurations(context) -> list[tuple[str, object, tuple]]:
 
 
 def blocks(context) -> list[tuple[str, list]]:
-    """(block label, sequences): the paper's given sequences, then the development ones."""
+    """(block label, sequences): the paper's given sequences, then the development ones (the
+    given sequences when neither set is among them)."""
     out = [("paper's sequences" if not context.is_synthetic else "synthetic suite", context.paper_sequences())]
     if context.development_sequences():
         out.append(("development sequences", context.development_sequences()))
-    return [(label, list(seqs)) for label, seqs in out if seqs]
+    out = [(label, list(seqs)) for label, seqs in out if seqs]
+    # Neither set given (``--sequences`` named others): the given ones, rather than nothing.
+    return out or [("other sequences", context.sequences())]
 
 
 def _specs(context, name: str, params, seeds) -> list:
