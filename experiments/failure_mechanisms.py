@@ -5,7 +5,9 @@ Per run (frame 0, the given box, excluded throughout):
 
 1. **no positive among the nearest**: share of frames whose best candidate has
    eps_pos* >= :data:`NO_POSITIVE` (its k nearest templates are all negatives, so
-   eps_pos = |y|^2 = 1 and the ranking rests on eps_neg alone);
+   eps_pos = |y|^2 = 1 and the ranking rests on eps_neg alone; under
+   ``dictionaries='per_class'`` eps_pos comes from positives only, so this is about 0 by
+   construction);
 2. **occlusion flag**: share of frames with LEN(neg*) > occlusion_max_negative, and
    positive-template updates per 100 frames;
 3. **scale drift**: sqrt(box area / ground-truth area) on the annotated frames, its
