@@ -85,7 +85,10 @@ def configurations(context) -> list[tuple[object, object, object]]:
             continue
         base = context.base_params
         sigmas = converted_sigmas(classic["affsig"], classic["box"], sequence.init_box, base.patch_size)
-        out.append((sequence, base, base.replace(motion_sigmas=sigmas)))
+        classic = base.replace(motion_sigmas=sigmas)
+        if "translation_noise" in base.as_dict():  # affsig's x, y are image pixels
+            classic = classic.replace(translation_noise="pixels")
+        out.append((sequence, base, classic))
     return out
 
 

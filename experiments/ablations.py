@@ -12,12 +12,15 @@ Families, each against the default tracker (the first row of each):
 - every other switch of ``TrackerParams`` (:func:`switches`: a flag, or a string
   with named choices), every choice of each: template sampling (SCM's vs the
   printed annulus), propagation (condensation vs around the best), translation
-  noise (pixels vs relative to the size), patch normalisation (unit vs
+  noise (relative to the size vs the classic trackers' 4 image pixels),
+  patch normalisation (unit vs
   centred), dictionaries (joint vs per class), and any switch added later;
 - preset: the default tracker vs ``TrackerParams.paper()`` (the paper as printed);
 - scale noise of the motion model (which the paper does not state): 1% of the
   size per frame (default) vs 0.25%, 0.5% and 2%;
 - particles (not stated either): 600 (default) vs half and twice as many;
+- the confidence scale alpha (under condensation the likelihood's sharpness):
+  the default vs the paper's 2.5;
 - the template spread: under SCM sampling the positive centres' sigma (half and
   twice the default), under the annulus the radii r and s (half and twice each).
 
@@ -46,6 +49,11 @@ from nrmlc import io
 
 STEM = "ablations"
 TITLE = "Ablations: constraint vs regularisation, every switch beyond the paper, and the values it leaves unstated"
+
+#: The classic trackers' translation noise (IVT/L1/SCM ``affsig``): 4 image pixels.
+CLASSIC_TRANSLATION = (4.0, 4.0)
+#: The paper's confidence scale alpha.
+PAPER_ALPHA = 2.5
 
 #: Relative scale noise per frame (motion_sigmas[2]) of the scale-noise family.
 SCALE_SIGMAS = (0.0025, 0.005, 0.01, 0.02)
@@ -105,8 +113,17 @@ def families(context) -> list[tuple[str, list[tuple[str, object]]]]:
     ]
     for family, field in switches():
         current = getattr(base, field)
-        out.append((family, [(f"{current} (default)", base)]
-                    + [(str(choice), base.replace(**{field: choice})) for choice in _choices(field) if choice != current]))
+        rows = [(f"{current} (default)", base)]
+        for choice in _choices(field):
+            if choice == current:
+                continue
+            if field == "translation_noise" and choice == "pixels":
+                # Image pixels with the classic trackers' numbers, not the relative default's.
+                rows.append((f"pixels, {CLASSIC_TRANSLATION[0]:g} px (classic trackers)", base.replace(
+                    translation_noise="pixels", motion_sigmas=CLASSIC_TRANSLATION + base.motion_sigmas[2:])))
+            else:
+                rows.append((str(choice), base.replace(**{field: choice})))
+        out.append((family, rows))
     if hasattr(TrackerParams, "paper"):
         paper_preset = TrackerParams.paper()
         if paper_preset != base:
@@ -117,6 +134,8 @@ def families(context) -> list[tuple[str, list[tuple[str, object]]]]:
             for sigma in SCALE_SIGMAS if sigma != base.motion_sigmas[2]]),
         ("particles", [(f"{base.n_particles} (default)", base)]
          + [(f"{n}", base.replace(n_particles=n)) for n in (base.n_particles // 2, 2 * base.n_particles)]),
+        ("confidence scale α", [(f"α = {base.alpha:g} (default)", base)]
+         + ([(f"α = {PAPER_ALPHA:g} (paper)", base.replace(alpha=PAPER_ALPHA))] if base.alpha != PAPER_ALPHA else [])),
     ]
     if getattr(base, "template_sampling", "annulus") == "annulus":
         r, s = base.positive_radius, base.negative_radius
