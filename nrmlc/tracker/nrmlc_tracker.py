@@ -307,6 +307,9 @@ class NRMLCTracker:
         if p.translation_noise == "relative":
             size = states[:, 2] * np.sqrt(0.5 * (1.0 + states[:, 4] ** 2))
             noise[:, 0:2] *= size[:, None]
+        n_wide = int(round(p.wide_share * n))
+        if n_wide:
+            noise[n - n_wide:, 0:2] *= p.wide_factor
         states[:, 0:2] += noise[:, 0:2]
         states[:, 2] *= np.exp(noise[:, 2])
         states[:, 3] += noise[:, 3]

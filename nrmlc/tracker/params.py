@@ -121,6 +121,9 @@ class TrackerParams:
         positive templates, eps_neg from that on the k nearest negatives, each with
         the paper's multiple local dictionaries and solver; the joint coding still
         gives the codes, LEN(neg*) and the occlusion test.
+    wide_share, wide_factor : float
+        A share of the particles (*ours*, 0 = off, the paper) whose translation noise is
+        ``wide_factor`` times larger, so that the cloud can reach a fast-moving target.
     """
 
     n_particles: int = 600
@@ -149,6 +152,8 @@ class TrackerParams:
     translation_noise: str = "relative"
     patch_normalization: str = "unit"
     dictionaries: str = "joint"
+    wide_share: float = 0.0
+    wide_factor: float = 4.0
 
     def __post_init__(self) -> None:
         def fail(name: str, message: str) -> None:
@@ -163,7 +168,8 @@ class TrackerParams:
             if isinstance(value, bool) or not isinstance(value, int):
                 fail(name, f"must be an integer, got {value!r}")
         for name in ("positive_radius", "negative_radius", "lam", "beta", "alpha",
-                     "update_error_threshold", "coefficient_tolerance", "positive_sigma"):
+                     "update_error_threshold", "coefficient_tolerance", "positive_sigma", "wide_share",
+                     "wide_factor"):
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
                 fail(name, f"must be a finite number, got {value!r}")
@@ -201,6 +207,10 @@ class TrackerParams:
                               ("patch_normalization", PATCH_NORMALIZATIONS), ("dictionaries", DICTIONARY_SCOPES)):
             if getattr(self, name) not in choices:
                 fail(name, f"unknown value {getattr(self, name)!r}; choose one of {', '.join(choices)}")
+        if not 0 <= self.wide_share <= 1:
+            fail("wide_share", f"must be in [0, 1], got {self.wide_share}")
+        if not 1 <= self.wide_factor <= 100:
+            fail("wide_factor", f"must be in [1, 100], got {self.wide_factor}")
         if not 0 <= self.positive_sigma <= MAX_RADIUS:
             fail("positive_sigma", f"must be in [0, {MAX_RADIUS:g}], got {self.positive_sigma}")
         if self.dictionaries == "per_class" and self.k_max > min(self.n_positive, self.n_negative):
@@ -265,7 +275,7 @@ class TrackerParams:
 PRESETS: dict[str, dict] = {
     "default": {},
     "paper": dict(template_sampling="annulus", propagation="condensation", alpha=2.5,
-                  patch_normalization="unit", dictionaries="joint"),
+                  patch_normalization="unit", dictionaries="joint", wide_share=0.0),
 }
 
 
