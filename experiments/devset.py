@@ -65,7 +65,7 @@ def development_sequences(data: Path | None, names, n_synthetic: int, max_frames
     from nrmlc.data import list_sequences, synthetic_suite
 
     sequences = []
-    if data is not None:
+    if data is not None and names:
         by_name = {s.name: s for s in list_sequences(data)}
         missing = [n for n in names if n not in by_name]
         if missing:
@@ -146,7 +146,8 @@ def main(argv=None) -> int:
         config = configuration(args.preset, args.param)
         baseline = configuration(args.baseline_preset, args.baseline_param)
         data = args.data or data_root_from_env() or (str(DEFAULT_DATA) if DEFAULT_DATA.is_dir() else None)
-        names = DEVELOPMENT_SEQUENCES if args.sequences is None else tuple(args.sequences.split(","))
+        names = (DEVELOPMENT_SEQUENCES if args.sequences is None
+                 else tuple(n for n in args.sequences.split(",") if n.strip()))  # "" = the synthetic suite only
         unknown = [n for n in names if n not in DEVELOPMENT_SEQUENCES]
         if unknown:
             raise NrmlcError(f"--sequences: not development sequences: {', '.join(unknown)}")
