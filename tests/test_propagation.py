@@ -238,3 +238,30 @@ def test_param_tuples_with_empty_elements_are_refused():
     assert parse_param_assignment("dictionary_sizes=5, 8") == ("dictionary_sizes", (5, 8))
     with pytest.raises(ParameterError, match="dictionary_sizes"):
         parse_param_assignment("dictionary_sizes=5,,8")
+
+
+def test_per_class_errors_come_from_each_class_alone(sequence):
+    """'per_class': eps_pos is the joint machinery run on the positive templates only (so it
+    is never the empty reconstruction's 1), eps_neg on the negatives only; the joint coding
+    still gives the codes."""
+    joint = _tracker_after_one_frame(sequence)
+    per_class = _tracker_after_one_frame(sequence, dictionaries="per_class")
+    patches = joint.last_candidates["patches"]
+    per_class._set_templates(joint.positive_templates, joint.negative_templates)
+    coded = per_class.encode(patches)
+    positives_only = NRMLCTracker(seed=0, **FAST)
+    positives_only._set_templates(joint.positive_templates, joint.negative_templates[:0])
+    alone = positives_only.encode(patches)
+    np.testing.assert_allclose(coded["error_positive"], alone["error_positive"], rtol=0, atol=1e-9)
+    assert np.all(coded["error_positive"] < 0.999)
+    reference = joint.encode(patches)
+    np.testing.assert_array_equal(coded["codes"], reference["codes"])
+
+
+def test_wide_particles_spread_wider(sequence):
+    tracker = NRMLCTracker(seed=0, n_particles=4000, propagation="best", translation_noise="pixels",
+                           motion_sigmas=(2.0, 2.0, 0, 0, 0, 0), wide_share=0.25, wide_factor=4.0)
+    tracker.init(sequence.frame(0), sequence.init_box)
+    offsets = tracker.sample_particles()[:, 0] - tracker.state[0]
+    assert np.std(offsets[:3000]) == pytest.approx(2.0, rel=0.06)
+    assert np.std(offsets[3000:]) == pytest.approx(8.0, rel=0.08)
