@@ -21,6 +21,8 @@ Families, each against the default tracker (the first row of each):
 - particles (not stated either): 600 (default) vs half and twice as many;
 - the confidence scale alpha (under condensation the likelihood's sharpness):
   the default vs the paper's 2.5;
+- any other value in which the default departs from the paper preset (e.g. a share of
+  wide translation noise, if switched on): the default vs the paper's value;
 - the template spread: under SCM sampling the positive centres' sigma (half and
   twice the default), under the annulus the radii r and s (half and twice each).
 
@@ -137,6 +139,16 @@ def families(context) -> list[tuple[str, list[tuple[str, object]]]]:
         ("confidence scale α", [(f"α = {base.alpha:g} (default)", base)]
          + ([(f"α = {PAPER_ALPHA:g} (paper)", base.replace(alpha=PAPER_ALPHA))] if base.alpha != PAPER_ALPHA else [])),
     ]
+    # Any other value in which the default departs from the paper preset: a row with the paper's.
+    if hasattr(TrackerParams, "paper"):
+        covered = {field for _, field in switches()} | set(OWN_FAMILIES) | {
+            "alpha", "motion_sigmas", "n_particles", "dictionary_sizes", "lam", "beta", "positive_sigma",
+            "positive_radius", "negative_radius"}
+        paper_preset = TrackerParams.paper()
+        for field, value in sorted(params_differences(paper_preset, base).items()):
+            if field not in covered:
+                out.append((field.replace("_", " "), [(f"{getattr(base, field)} (default)", base),
+                                                      (f"{value} (paper)", base.replace(**{field: value}))]))
     if getattr(base, "template_sampling", "annulus") == "annulus":
         r, s = base.positive_radius, base.negative_radius
         out.append(("template radii", [(f"r = {r:g}, s = {s:g} (default)", base)]
