@@ -13,15 +13,25 @@
 Threads (numba, BLAS, OpenCV) follow the policy of
 :func:`nrmlc.config.set_threads`, which also explains it.
 """
-from nrmlc.kernels.coding import (
+from nrmlc.kernels.cache import drop_stale_cache
+
+# Before any kernel module loads its cached machine code (see nrmlc.kernels.cache).
+drop_stale_cache()
+
+from nrmlc.kernels.coding import (  # noqa: E402
     PLAIN_JITTER,
     code_candidates,
     combine_dictionaries,
     encode_dictionaries,
     scatter_codes,
 )
-from nrmlc.kernels.distance import candidate_template_dots, nearest_templates, squared_norms, template_gram
-from nrmlc.kernels.warp import centre_patches, warp_patches
+from nrmlc.kernels.distance import (  # noqa: E402
+    candidate_template_dots,
+    nearest_templates,
+    squared_norms,
+    template_gram,
+)
+from nrmlc.kernels.warp import centre_patches, warp_patches  # noqa: E402
 
 __all__ = [
     "warp_patches",
