@@ -30,13 +30,16 @@ Writes ``bench.md`` (printed too) and ``bench.json`` (every number) to
 
 The bench times exactly the configuration the API and the CLI use: it calls
 nothing that changes threads unless ``--threads`` is given. The machine may be
-shared: the load average and idle share are recorded; compare ratios measured
-in one run, not numbers across runs.
+shared: before each measured section it waits (up to ``--wait-quiet`` seconds)
+for an idle machine, and it records the waits, the idle share, the load average
+and the parallel speed-up at hand; compare ratios measured in one run, not
+numbers across runs.
 """
 from __future__ import annotations
 
 import argparse
 import copy
+import functools
 import json
 import math
 import os
@@ -93,6 +96,24 @@ def compare(name: str, fps: float, other: str, other_fps: float) -> str:
     return f"{name} is {1.0 / ratio:.2f}x slower than {other}"
 
 
+@functools.lru_cache(maxsize=None)
+def _spin_kernel():
+    """A compute-bound parallel loop (compiled once per process; a closure, so not cached on disk)."""
+    import numba
+
+    from nrmlc.config import PARALLEL_FLAGS
+
+    @numba.njit(**dict(PARALLEL_FLAGS, cache=False))
+    def spin(out):
+        for i in numba.prange(out.shape[0]):
+            value = 0.0
+            for k in range(20000):
+                value += math.sin(value + k)
+            out[i] = value
+
+    return spin
+
+
 def _parallel_speedup(repeats: int = 5) -> float | None:
     """How much faster a compute-bound numba loop runs on all threads than on one, right now.
 
@@ -101,16 +122,7 @@ def _parallel_speedup(repeats: int = 5) -> float | None:
     """
     import numba
 
-    from nrmlc.config import PARALLEL_FLAGS
-
-    @numba.njit(**dict(PARALLEL_FLAGS, cache=False))  # a closure: numba cannot cache it
-    def spin(out):
-        for i in numba.prange(out.shape[0]):
-            value = 0.0
-            for k in range(20000):
-                value += math.sin(value + k)
-            out[i] = value
-
+    spin = _spin_kernel()
     threads = numba.get_num_threads()
     if threads < 2:
         return None
@@ -126,21 +138,47 @@ def _parallel_speedup(repeats: int = 5) -> float | None:
     return times[1] / times[threads]
 
 
-def _load() -> dict:
-    """Load averages and the share of CPU time idle over the last 0.5 s (all cores)."""
+#: Before each measured section the bench waits, up to this many seconds, for the machine to
+#: be at least QUIET_SHARE idle (over one second); 0 disables it (``--wait-quiet``).
+WAIT_QUIET_S = 30.0
+QUIET_SHARE = 0.8
+_quiet_log: list[dict] = []
+
+
+def _idle_share(seconds: float) -> float | None:
+    """Share of CPU time idle over the next ``seconds`` (all cores), or None off Linux."""
     def ticks():
         fields = [float(v) for v in Path("/proc/stat").read_text().split("\n", 1)[0].split()[1:]]
         return fields[3] + fields[4], sum(fields)
 
     try:
         idle_0, total_0 = ticks()
-        time.sleep(0.5)
+        time.sleep(seconds)
         idle_1, total_1 = ticks()
-        idle = (idle_1 - idle_0) / max(total_1 - total_0, 1.0)
-        return {"load_average": [round(v, 2) for v in os.getloadavg()], "idle_share": round(idle, 3),
-                "parallel_speedup": _parallel_speedup()}
     except OSError:  # pragma: no cover - not Linux
-        return {"load_average": None, "idle_share": None, "parallel_speedup": _parallel_speedup()}
+        return None
+    return (idle_1 - idle_0) / max(total_1 - total_0, 1.0)
+
+
+def wait_quiet(section: str) -> None:
+    """Wait up to WAIT_QUIET_S for an idle machine, and log how long and how idle it was."""
+    start = time.perf_counter()
+    idle = _idle_share(1.0) if WAIT_QUIET_S > 0 else None
+    while idle is not None and idle < QUIET_SHARE and time.perf_counter() - start < WAIT_QUIET_S:
+        idle = _idle_share(1.0)
+    _quiet_log.append({"section": section, "waited_s": round(time.perf_counter() - start, 1),
+                       "idle_share": None if idle is None else round(idle, 2)})
+
+
+def _load(probe_cores: bool = True) -> dict:
+    """Load averages, the share of CPU time idle over 0.5 s (all cores), the parallel speed-up at hand."""
+    idle = _idle_share(0.5)
+    try:
+        load_average = [round(v, 2) for v in os.getloadavg()]
+    except OSError:  # pragma: no cover - not Linux
+        load_average = None
+    return {"load_average": load_average, "idle_share": None if idle is None else round(idle, 3),
+            "parallel_speedup": _parallel_speedup() if probe_cores else None}
 
 
 # ---------------------------------------------------------------------------
@@ -309,6 +347,7 @@ def bench_stages(sequence, counts, warm_frames: int = 20, timed_frames: int = 60
     timed_frames = len(frames) - warm_frames - 1
     rows = []
     for n in counts:
+        wait_quiet(f"stages N={n}")
         timer = StageTimer(NRMLCTracker)
         try:
             tracker = NRMLCTracker(seed=0, params=TrackerParams(n_particles=n))
@@ -516,7 +555,8 @@ def bench_end_to_end(sequence, n_frames: int | None, rounds: int) -> list[dict]:
     variants = {f"NRMLC {mode}": default if mode == default.coding else default.replace(coding=mode) for mode in MODES}
     samples = {name: [] for name in variants}
     samples["OpenCV TrackerMIL"] = []
-    for _ in range(rounds):
+    for index in range(rounds):
+        wait_quiet(f"end to end {sequence.name} round {index + 1}")
         for name, params in variants.items():
             samples[name].append(_nrmlc_fps(sequence, frames, params))
         samples["OpenCV TrackerMIL"].append(_mil_fps(sequence, color_frames))
@@ -579,7 +619,8 @@ THREAD_SETUPS = {
 def bench_threads(data_sequence: Path | None, rounds: int = 2, n_frames: int = 120) -> list[dict]:
     """Tracker fps and CPU per frame under each thread set-up, each in a fresh process, interleaved."""
     samples = {name: [] for name in THREAD_SETUPS}
-    for _ in range(rounds):
+    for index in range(rounds):
+        wait_quiet(f"thread set-ups round {index + 1}")
         for name, (setup, extra_env) in THREAD_SETUPS.items():
             env = {k: v for k, v in os.environ.items() if k not in ("OMP_WAIT_POLICY", "GOMP_SPINCOUNT")}
             env.update(extra_env)
@@ -766,8 +807,17 @@ def _markdown(result: dict) -> str:
              "well below 1); all threads against one on a compute-bound loop: "
              f"{_speedup_text(result['load_before'])} / {_speedup_text(result['load_after'])} faster (about the "
              "core count when the cores are free, about 1 when other processes hold them). "
-             "Compare ratios within this run.", "",
-             "## Summary", ""]
+             "Compare ratios within this run.", ""]
+    quiet = result.get("quiet") or {}
+    sections = [entry for entry in quiet.get("sections", []) if entry["idle_share"] is not None]
+    if quiet.get("wait_limit_s") and sections:
+        shares = [entry["idle_share"] for entry in sections]
+        lines += [f"Before each measured section the bench waited up to {quiet['wait_limit_s']:.0f} s for the "
+                  f"machine to be {quiet['quiet_share']:.0%} idle: {sum(e['waited_s'] for e in sections):.0f} s of "
+                  f"waiting in all; the idle share when the sections started ranged {min(shares):.2f}-"
+                  f"{max(shares):.2f} ({sum(share >= quiet['quiet_share'] for share in shares)} of "
+                  f"{len(shares)} sections started on a quiet machine).", ""]
+    lines += ["## Summary", ""]
     lines += [f"- {line}" for line in result["summary"]]
     stage_sequence = result.get("stage_sequence", "")
     lines += ["", f"## Stages of a frame ({stage_sequence}, ms per frame)", "",
@@ -836,16 +886,20 @@ def _markdown(result: dict) -> str:
 def run(data: Path | None, out_dir: Path, n_threads: int | None = None, counts=PARTICLE_COUNTS, repeats: int = 15,
         reference_repeats: int = 2, synthetic_frames: int = 120, real_frames: int | None = REAL_FRAMES,
         e2e_rounds: int = 3, startup: bool = True, reference_subset: dict | None = None,
-        thread_study: bool = True, stage_frames: int = 60, grid: bool = True, dask: str | None = None) -> dict:
+        thread_study: bool = True, stage_frames: int = 60, grid: bool = True, dask: str | None = None,
+        wait_quiet_s: float = WAIT_QUIET_S, probe_cores: bool = True) -> dict:
     from nrmlc import io
     from nrmlc.data import open_sequence, synthetic_suite
 
+    global WAIT_QUIET_S
+    WAIT_QUIET_S = wait_quiet_s
+    _quiet_log.clear()
     began = time.perf_counter()
     if n_threads is not None:  # otherwise the API's own configuration, untouched
         from nrmlc.config import set_threads
 
         set_threads(n_threads)
-    result = {"load_before": _load(), "threads_option": n_threads}
+    result = {"load_before": _load(probe_cores), "threads_option": n_threads}
     synthetic = synthetic_suite(n_frames=synthetic_frames)[0]
     car4 = None
     if data is not None:
@@ -879,7 +933,8 @@ def run(data: Path | None, out_dir: Path, n_threads: int | None = None, counts=P
         print("grid throughput:", flush=True)
         result["grid"] = bench_grid(os.cpu_count() or 1, dask)
     result["machine"] = machine_info()
-    result["load_after"] = _load()
+    result["load_after"] = _load(probe_cores)
+    result["quiet"] = {"wait_limit_s": wait_quiet_s, "quiet_share": QUIET_SHARE, "sections": list(_quiet_log)}
     result["summary"] = _summary(result)
     result["bench_seconds"] = time.perf_counter() - began
     out_dir = Path(out_dir)
@@ -903,6 +958,10 @@ def main(argv=None) -> dict:
                         help="call nrmlc.config.set_threads(THREADS) first (default: leave the API's configuration)")
     parser.add_argument("--dask", default=None, metavar="SCHEDULER_ADDRESS",
                         help="also run the grid-throughput runs on this Dask cluster (needs the cluster extra)")
+    parser.add_argument("--wait-quiet", type=float, default=WAIT_QUIET_S, metavar="SECONDS",
+                        help=f"before each measured section wait up to SECONDS for the machine to be "
+                             f"{QUIET_SHARE:.0%} idle (default {WAIT_QUIET_S:.0f}; 0: never wait); the waits and the "
+                             "idle share are reported")
     parser.add_argument("--quick", action="store_true",
                         help="tiny settings (for tests): N=50, few repeats, no start-up or thread study")
     args = parser.parse_args(argv)
@@ -910,8 +969,8 @@ def main(argv=None) -> dict:
         return run(args.data, args.out, args.threads, counts=(50,), repeats=2, reference_repeats=1,
                    synthetic_frames=12, real_frames=12, e2e_rounds=1, startup=False,
                    reference_subset={"regularized": 10, "plain": 10, "constrained": 4}, thread_study=False,
-                   stage_frames=4, grid=False)
-    return run(args.data, args.out, args.threads, dask=args.dask)
+                   stage_frames=4, grid=False, wait_quiet_s=0.0, probe_cores=False)
+    return run(args.data, args.out, args.threads, dask=args.dask, wait_quiet_s=args.wait_quiet)
 
 
 if __name__ == "__main__":
