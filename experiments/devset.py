@@ -90,10 +90,10 @@ def mean_overlaps(cache: RunCache, params: TrackerParams, sequences, seeds, max_
 
 def peer_overlaps(cache: RunCache, sequences, max_frames, jobs) -> dict:
     """{tracker: {sequence name: mean overlap}} for the live OpenCV trackers (cached)."""
-    from experiments.peers import LiveSpec, PeerCache, live_trackers
+    from experiments.peers import LiveSpec, live_trackers
 
     specs = [LiveSpec(s, name, max_frames) for name in live_trackers() for s in sequences]
-    results = PeerCache(Path(cache.folder) / "peers").run(specs, jobs=jobs)
+    results = cache.run(specs, jobs=jobs)
     table: dict = {}
     for spec, result in zip(specs, results):
         n = len(result.boxes)

@@ -174,11 +174,6 @@ def run_live(spec: LiveSpec) -> dict:
     return {"boxes": boxes, "seconds_tracking": np.float64(seconds)}
 
 
-def PeerCache(folder) -> RunCache:
-    """Deprecated: live runs are jobs of the one run cache; ``folder`` is ``<run cache>/peers``."""
-    return RunCache(Path(folder).parent)
-
-
 def cache_for(context) -> RunCache:
     """The run cache (live runs are stored in its ``peers/`` folder)."""
     return context.cache
