@@ -80,12 +80,14 @@ class BoxVideoWriter:
 
     def on_frame(self, index: int, tracker, frame) -> None:
         image = self.sequence.color_frame(index).copy()
-        truth = self.sequence.groundtruth[index]
-        if np.all(np.isfinite(truth)):
-            _draw(image, truth, (0, 200, 0))
+        boxes = self.sequence.groundtruth
+        truth = boxes[index] if boxes is not None and index < len(boxes) else None
+        has_truth = truth is not None and bool(np.all(np.isfinite(truth)))
+        if has_truth:
+            _draw(image, truth, TRUTH_COLOUR)
         box = tracker.initial_box if index == 0 else tracker.last.box
-        _draw(image, box, (0, 0, 255))
-        cv2.putText(image, f"#{index + 1}", (5, 18), cv2.FONT_HERSHEY_SIMPLEX, 0.5, (0, 255, 255), 1)
+        _draw(image, box, TRACKER_COLOUR)
+        _legend(image, index, has_truth)
         self.writer.write(image)
         self.frames_written += 1
 
@@ -113,6 +115,24 @@ class BoxVideoWriter:
         """Drop the partial video; an earlier file at ``path`` stays as it was."""
         self.writer.release()
         io.discard(self.tmp_path)
+
+
+#: Box colours (BGR): the tracker's estimate and the ground truth.
+TRACKER_COLOUR = (0, 0, 255)
+TRUTH_COLOUR = (0, 200, 0)
+
+
+def _legend(image: np.ndarray, index: int, has_truth: bool) -> None:
+    """Frame number and a key of the box colours, top left, on a dark band so it reads on
+    any background."""
+    entries = [(f"#{index + 1}", (0, 255, 255)), ("NRMLC", TRACKER_COLOUR)]
+    if has_truth:
+        entries.append(("ground truth", TRUTH_COLOUR))
+    x = 4
+    cv2.rectangle(image, (0, 0), (min(image.shape[1] - 1, 250), 22), (0, 0, 0), -1)
+    for text, colour in entries:
+        cv2.putText(image, text, (x, 16), cv2.FONT_HERSHEY_SIMPLEX, 0.45, colour, 1, cv2.LINE_AA)
+        x += cv2.getTextSize(text, cv2.FONT_HERSHEY_SIMPLEX, 0.45, 1)[0][0] + 10
 
 
 def _draw(image: np.ndarray, box, colour) -> None:
