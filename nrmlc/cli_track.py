@@ -34,6 +34,11 @@ def add_track_command(commands) -> None:
     track.add_argument("--target", type=int, help="target number in a multi-target folder (groundtruth_rect.N.txt)")
     track.add_argument("--init-box", metavar="X,Y,W,H",
                        help="initial box (default: the first ground-truth box); may start with a minus sign")
+    from nrmlc.tracker.params import PRESETS
+
+    track.add_argument("--preset", default="default", choices=tuple(PRESETS),
+                       help="parameter set: 'default' (chosen on the development sequences) or 'paper' "
+                            "(the paper as printed); --param and the options above change single values")
     track.add_argument("--param", action="append", default=[], metavar="NAME=VALUE",
                        help="any other tracker parameter, e.g. --param occlusion_detection=false (repeatable)")
     track.add_argument("--threads", type=int, help="threads for numba/OpenBLAS/OpenCV (default: all cores)")
@@ -88,7 +93,7 @@ def run_track(args: argparse.Namespace) -> int:
             if name in overrides and overrides[name] != value:
                 raise ParameterError(f"{option} {value} and --param {name}={overrides[name]} disagree; give one")
             overrides[name] = value
-    params = TrackerParams().replace(**overrides)
+    params = TrackerParams.preset(args.preset, **overrides)
     if args.frames is not None and args.frames < 1:
         raise ParameterError(f"--frames must be >= 1, got {args.frames}")
     if args.target is not None and args.target < 1:

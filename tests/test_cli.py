@@ -381,3 +381,24 @@ def test_subprocess_warnings_are_one_line_each(seq, tmp_path):
     assert "6 ground-truth boxes for 8 frames" in warnings[0]
     assert "partly outside the 128x96 frame; clipped to [120.0, 40.0, 9.0, 20.0]" in warnings[1]
     assert "Traceback" not in result.stderr and "UserWarning" not in result.stderr
+
+
+def test_track_preset_paper_changes_the_parameters_and_options_still_apply(seq, tmp_path, capsys, monkeypatch):
+    import nrmlc.tracker.run as run
+
+    seen = []
+    real = run.track_sequence
+
+    def spy(sequence, params=None, **kwargs):
+        seen.append(params)
+        return real(sequence, params, **kwargs)
+
+    monkeypatch.setattr(run, "track_sequence", spy)
+    out = tmp_path / "r.txt"
+    code, _, err = run_main(["track", str(seq), "--out", str(out), "--frames", "3", "--particles", "40",
+                             "--preset", "paper"], capsys)
+    assert code == 0, err
+    assert seen[-1].template_sampling == "annulus" and seen[-1].alpha == 2.5 and seen[-1].n_particles == 40
+    with pytest.raises(SystemExit) as stop:
+        main(["track", str(seq), "--out", str(out), "--preset", "nope"])
+    assert stop.value.code == 2 and "argument --preset: invalid choice: 'nope'" in capsys.readouterr().err
