@@ -206,7 +206,7 @@ def main(argv=None) -> int:
             from distributed import Client
         except ImportError:
             parser.error("--dask needs the Dask 'distributed' package, which is not installed "
-                         "(pip install distributed); without --dask the grid runs in a local process pool")
+                         "(pip install -e .[cluster]); without --dask the grid runs in a local process pool")
         client = Client(args.dask)
         context.executor = client.get_executor()
 

@@ -368,7 +368,7 @@ def _cmd_benchmark(args: argparse.Namespace) -> int:
         try:
             from distributed import Client
         except ImportError:
-            raise ParameterError("--dask needs the Dask 'distributed' package (pip install distributed)") from None
+            raise ParameterError("--dask needs the Dask 'distributed' package (pip install -e .[cluster])") from None
         executor = Client(args.dask).get_executor()
     summary = run_benchmark(args.data, args.out, params, parse_seeds(args.seeds), parse_names(args.sequences),
                             args.max_frames, args.jobs, executor,

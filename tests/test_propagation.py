@@ -11,7 +11,7 @@ from hypothesis import strategies as st
 from nrmlc import NRMLCTracker, TrackerParams
 from nrmlc.data import SyntheticSequence, SyntheticSpec
 from nrmlc.errors import ParameterError
-from nrmlc.geometry import box_to_state, clamp_states, state_to_box
+from nrmlc.geometry import clamp_states, state_to_box
 from nrmlc.tracker import track_sequence
 from nrmlc.tracker.templates import (SCM_PUSH_INIT, SCM_PUSH_UPDATE, scm_negative_states,
                                      scm_positive_states, target_size)
