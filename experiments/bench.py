@@ -960,7 +960,7 @@ def main(argv=None) -> dict:
                         help="also run the grid-throughput runs on this Dask cluster (needs the cluster extra)")
     parser.add_argument("--wait-quiet", type=float, default=WAIT_QUIET_S, metavar="SECONDS",
                         help=f"before each measured section wait up to SECONDS for the machine to be "
-                             f"{QUIET_SHARE:.0%} idle (default {WAIT_QUIET_S:.0f}; 0: never wait); the waits and the "
+                             f"{QUIET_SHARE * 100:.0f}%% idle (default {WAIT_QUIET_S:.0f}; 0: never wait); the waits and the "
                              "idle share are reported")
     parser.add_argument("--quick", action="store_true",
                         help="tiny settings (for tests): N=50, few repeats, no start-up or thread study")

@@ -1,4 +1,4 @@
-"""The tracker: interface, parameters, and the paper's problems resolved (README "Deviations")."""
+"""The tracker: interface, parameters, and the paper's problems resolved (docs/DEVIATIONS.md)."""
 import numpy as np
 import pytest
 
@@ -121,7 +121,7 @@ def test_move_to_checks_its_box(sequence):
             tracker.move_to(box)
 
 
-# -- the paper's problems (see README, "Deviations from the paper") --------------
+# -- the paper's problems (see docs/DEVIATIONS.md) ------------ --------------
 
 def test_problem1_literal_confidence_prefers_the_worst_candidate(coded_frame):
     """Eq. (conf) as printed, 1/exp(-a(e_pos - e_neg)), ranks candidates in reverse."""
