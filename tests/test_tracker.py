@@ -121,7 +121,7 @@ def test_move_to_checks_its_box(sequence):
             tracker.move_to(box)
 
 
-# -- the paper's problems (see docs/DEVIATIONS.md) ------------ --------------
+# -- the paper's problems (see docs/DEVIATIONS.md) -----------------------------------
 
 def test_problem1_literal_confidence_prefers_the_worst_candidate(coded_frame):
     """Eq. (conf) as printed, 1/exp(-a(e_pos - e_neg)), ranks candidates in reverse."""
