@@ -27,32 +27,16 @@ from pathlib import Path
 
 import numpy as np
 
+from experiments.grid import score, specs_for
 from experiments.sequence_sets import DEVELOPMENT_SEQUENCES
 from nrmlc import io
 from nrmlc.config import data_root_from_env
 from nrmlc.errors import NrmlcError
-from nrmlc.metrics import evaluate
-from nrmlc.runner import DEFAULT_CACHE, RunCache, RunSpec
+from nrmlc.benchmark import parse_seeds
+from nrmlc.runner import DEFAULT_CACHE, RunCache
 from nrmlc.tracker.params import TrackerParams, parse_param_assignment
 
 DEFAULT_DATA = Path(__file__).resolve().parents[2] / "shared" / "data" / "sequences"
-
-
-def parse_seeds(text: str) -> tuple[int, ...]:
-    """``"0-4"`` -> (0, 1, 2, 3, 4); ``"0,2,5"`` -> (0, 2, 5)."""
-    seeds: list[int] = []
-    try:
-        for part in text.split(","):
-            if "-" in part.strip()[1:]:
-                low, high = part.split("-", 1)
-                seeds.extend(range(int(low), int(high) + 1))
-            elif part.strip():
-                seeds.append(int(part))
-    except ValueError:
-        raise NrmlcError(f"--seeds {text!r}: expected e.g. 0-4 or 0,2,5") from None
-    if not seeds or min(seeds) < 0:
-        raise NrmlcError(f"--seeds {text!r}: expected non-negative seeds")
-    return tuple(seeds)
 
 
 def configuration(preset: str, assignments: list[str]) -> TrackerParams:
@@ -78,13 +62,11 @@ def development_sequences(data: Path | None, names, n_synthetic: int, max_frames
 
 def mean_overlaps(cache: RunCache, params: TrackerParams, sequences, seeds, max_frames, jobs) -> dict:
     """{sequence name: (mean over seeds of the mean overlap, per-seed list)}."""
-    specs = [RunSpec(s, params, seed, max_frames) for s in sequences for seed in seeds]
+    specs = specs_for(sequences, params, seeds, n_frames=max_frames)
     results = cache.run(specs, jobs=jobs)
     table: dict = {}
     for spec, result in zip(specs, results):
-        n = len(result.boxes)
-        score = evaluate(result.boxes, spec.sequence.groundtruth[:n]).mean_overlap
-        table.setdefault(spec.sequence.name, []).append(float(score))
+        table.setdefault(spec.sequence.name, []).append(float(score(result.boxes, spec.sequence).mean_overlap))
     return table
 
 
@@ -96,9 +78,7 @@ def peer_overlaps(cache: RunCache, sequences, max_frames, jobs) -> dict:
     results = cache.run(specs, jobs=jobs)
     table: dict = {}
     for spec, result in zip(specs, results):
-        n = len(result.boxes)
-        table.setdefault(spec.tracker, {})[spec.sequence.name] = float(
-            evaluate(result.boxes, spec.sequence.groundtruth[:n]).mean_overlap)
+        table.setdefault(spec.tracker, {})[spec.sequence.name] = float(score(result.boxes, spec.sequence).mean_overlap)
     return table
 
 
