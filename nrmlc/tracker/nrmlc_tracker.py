@@ -379,7 +379,7 @@ class NRMLCTracker:
         sizes = np.asarray(p.dictionary_sizes)
         within = np.arange(p.k_max)[None, :] < sizes[:, None]  # (m, k_max): entries of each c^j
         coefficient_values = coded["coefficients"][:, within]
-        self.state = states[best].copy()
+        self.state = self._estimate(states, log_confidence, best)
         result = FrameResult(
             state=self.state.copy(), box=state_to_box(self.state, p.patch_size),
             confidence=_exp_or_inf(log_confidence[best]), log_confidence=float(log_confidence[best]),
@@ -395,6 +395,24 @@ class NRMLCTracker:
         self.last_candidates = dict(coded, states=states, patches=candidates, best=best)
         return result
 
+    def _estimate(self, states: np.ndarray, log_confidence: np.ndarray, best: int) -> np.ndarray:
+        """(6,) estimate: the most confident particle, or the confidence-weighted mean of
+        the ``estimate_count`` most confident (scale and aspect averaged in the log)."""
+        count = self.params.estimate_count
+        if count == 1:
+            return states[best].copy()
+        # A stable sort keeps ties in particle order, so the estimate is seed-determined.
+        top = np.argsort(-log_confidence, kind="stable")[:count]
+        weights = np.exp(log_confidence[top] - log_confidence[best])
+        weights /= weights.sum()
+        chosen = states[top].copy()
+        chosen[:, 2] = np.log(chosen[:, 2])
+        chosen[:, 4] = np.log(chosen[:, 4])
+        state = weights @ chosen
+        state[2] = np.exp(state[2])
+        state[4] = np.exp(state[4])
+        return state
+
     def _update_templates(self, frame: np.ndarray, result: FrameResult) -> None:
         """Algorithm 2, step 2.5: negatives always; positives unless occluded."""
         p = self.params
@@ -402,11 +420,16 @@ class NRMLCTracker:
         positives = self.positive_templates
         blocked = p.occlusion_detection and result.occluded
         if not blocked and result.error_positive < p.update_error_threshold:
-            new = self.last_candidates["patches"][self.last_candidates["best"]][None, :]
+            if p.estimate_count == 1:
+                new = self.last_candidates["patches"][self.last_candidates["best"]][None, :]
+            else:
+                new = self._warp(frame, self.state[None, :])
             if len(positives) < p.max_positive:
                 positives = np.vstack([positives, new])
             else:
-                closest = int(np.argmin(((positives - new) ** 2).sum(axis=1)))
+                # The first frame's templates are the first n_positive rows.
+                first = p.n_positive if p.keep_initial_positives and p.max_positive > p.n_positive else 0
+                closest = first + int(np.argmin(((positives[first:] - new) ** 2).sum(axis=1)))
                 positives = positives.copy()
                 positives[closest] = new[0]
             result.updated_positive = True

@@ -124,6 +124,15 @@ class TrackerParams:
     wide_share, wide_factor : float
         A share of the particles (*ours*, 0 = off, the paper) whose translation noise is
         ``wide_factor`` times larger, so that the cloud can reach a fast-moving target.
+    estimate_count : int
+        The estimate is the confidence-weighted mean state of this many most confident
+        particles (*ours*; 1 = the paper: the most confident particle). Averaging damps
+        the frame-to-frame jitter of the arg max, which otherwise random-walks the scale.
+    keep_initial_positives : bool
+        When the positive set is full, replace the closest among the templates added
+        later, never one of the first frame's ``n_positive`` (*ours*; False = the paper:
+        the closest of all). The first frame's templates are the only ones known to be
+        the target, so drifted results cannot push them out.
     """
 
     n_particles: int = 600
@@ -154,6 +163,8 @@ class TrackerParams:
     dictionaries: str = "joint"
     wide_share: float = 0.0
     wide_factor: float = 4.0
+    estimate_count: int = 1
+    keep_initial_positives: bool = False
 
     def __post_init__(self) -> None:
         def fail(name: str, message: str) -> None:
@@ -163,7 +174,7 @@ class TrackerParams:
         object.__setattr__(self, "motion_sigmas", tuple(float(v) for v in self.motion_sigmas))
         object.__setattr__(self, "dictionary_sizes", tuple(int(v) for v in self.dictionary_sizes))
         for name in ("n_particles", "n_positive", "n_negative", "n_iterations", "update_interval",
-                     "max_positive", "occlusion_max_negative", "patch_size"):
+                     "max_positive", "occlusion_max_negative", "patch_size", "estimate_count"):
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, int):
                 fail(name, f"must be an integer, got {value!r}")
@@ -211,6 +222,10 @@ class TrackerParams:
             fail("wide_share", f"must be in [0, 1], got {self.wide_share}")
         if not 1 <= self.wide_factor <= 100:
             fail("wide_factor", f"must be in [1, 100], got {self.wide_factor}")
+        if not 1 <= self.estimate_count <= self.n_particles:
+            fail("estimate_count", f"must be in 1..n_particles ({self.n_particles}), got {self.estimate_count}")
+        if not isinstance(self.keep_initial_positives, bool):
+            fail("keep_initial_positives", f"must be True or False, got {self.keep_initial_positives!r}")
         if not 0 <= self.positive_sigma <= MAX_RADIUS:
             fail("positive_sigma", f"must be in [0, {MAX_RADIUS:g}], got {self.positive_sigma}")
         if self.dictionaries == "per_class" and self.k_max > min(self.n_positive, self.n_negative):
@@ -275,7 +290,8 @@ class TrackerParams:
 PRESETS: dict[str, dict] = {
     "default": {},
     "paper": dict(template_sampling="annulus", propagation="condensation", alpha=2.5,
-                  patch_normalization="unit", dictionaries="joint", wide_share=0.0),
+                  patch_normalization="unit", dictionaries="joint", wide_share=0.0,
+                  estimate_count=1, keep_initial_positives=False),
 }
 
 
