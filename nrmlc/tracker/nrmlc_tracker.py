@@ -255,6 +255,7 @@ class NRMLCTracker:
         self.initial_box = box
         self.particles = None
         self.log_weights = None
+        self.velocity = np.zeros(2)
         positives = self._sample_positives(frame, self.state)
         self._set_templates(positives, self._sample_negatives(frame, self.state, first=True))
         self.frame_index = 0
@@ -288,6 +289,7 @@ class NRMLCTracker:
         self.state = box_to_state(box, self.params.patch_size)
         self.particles = None
         self.log_weights = None
+        self.velocity = np.zeros(2)
 
     # -- one frame -------------------------------------------------------
     def sample_particles(self) -> np.ndarray:
@@ -303,6 +305,9 @@ class NRMLCTracker:
             states = self.particles[np.minimum(picks, n - 1)]
         else:
             states = np.tile(self.state, (n, 1))
+        if p.velocity_damping:
+            # The motion model's mean mu (eq. 1): the last frame's displacement, damped.
+            states[:, 0:2] += p.velocity_damping * self.velocity
         noise = self.rng.standard_normal((n, 6)) * np.asarray(p.motion_sigmas)
         if p.translation_noise == "relative":
             size = states[:, 2] * np.sqrt(0.5 * (1.0 + states[:, 4] ** 2))
@@ -379,7 +384,9 @@ class NRMLCTracker:
         sizes = np.asarray(p.dictionary_sizes)
         within = np.arange(p.k_max)[None, :] < sizes[:, None]  # (m, k_max): entries of each c^j
         coefficient_values = coded["coefficients"][:, within]
+        previous = self.state
         self.state = self._estimate(states, log_confidence, best)
+        self.velocity = self.state[:2] - previous[:2]
         result = FrameResult(
             state=self.state.copy(), box=state_to_box(self.state, p.patch_size),
             confidence=_exp_or_inf(log_confidence[best]), log_confidence=float(log_confidence[best]),

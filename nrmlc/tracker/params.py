@@ -128,6 +128,10 @@ class TrackerParams:
         The estimate is the confidence-weighted mean state of this many most confident
         particles (*ours*; 1 = the paper: the most confident particle). Averaging damps
         the frame-to-frame jitter of the arg max, which otherwise random-walks the scale.
+    velocity_damping : float
+        The motion model's mean (the mu of Sec. 2's N(mu, sigma^2), which the paper does
+        not give): each particle first moves by this share of the estimate's last
+        displacement (*ours*; 0 = the paper's random walk, 1 = constant velocity).
     keep_initial_positives : bool
         When the positive set is full, replace the closest among the templates added
         later, never one of the first frame's ``n_positive`` (*ours*; False = the paper:
@@ -164,6 +168,7 @@ class TrackerParams:
     wide_share: float = 0.0
     wide_factor: float = 4.0
     estimate_count: int = 1
+    velocity_damping: float = 0.0
     keep_initial_positives: bool = False
 
     def __post_init__(self) -> None:
@@ -179,7 +184,7 @@ class TrackerParams:
             if isinstance(value, bool) or not isinstance(value, int):
                 fail(name, f"must be an integer, got {value!r}")
         for name in ("positive_radius", "negative_radius", "lam", "beta", "alpha",
-                     "update_error_threshold", "coefficient_tolerance", "positive_sigma", "wide_share",
+                     "update_error_threshold", "coefficient_tolerance", "positive_sigma", "wide_share", "velocity_damping",
                      "wide_factor"):
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
@@ -224,6 +229,8 @@ class TrackerParams:
             fail("wide_factor", f"must be in [1, 100], got {self.wide_factor}")
         if not 1 <= self.estimate_count <= self.n_particles:
             fail("estimate_count", f"must be in 1..n_particles ({self.n_particles}), got {self.estimate_count}")
+        if not 0 <= self.velocity_damping <= 1:
+            fail("velocity_damping", f"must be in [0, 1], got {self.velocity_damping}")
         if not isinstance(self.keep_initial_positives, bool):
             fail("keep_initial_positives", f"must be True or False, got {self.keep_initial_positives!r}")
         if not 0 <= self.positive_sigma <= MAX_RADIUS:
@@ -291,7 +298,7 @@ PRESETS: dict[str, dict] = {
     "default": {},
     "paper": dict(template_sampling="annulus", propagation="condensation", alpha=2.5,
                   patch_normalization="unit", dictionaries="joint", wide_share=0.0,
-                  estimate_count=1, keep_initial_positives=False),
+                  estimate_count=1, keep_initial_positives=False, velocity_damping=0.0),
 }
 
 
