@@ -265,3 +265,51 @@ def test_wide_particles_spread_wider(sequence):
     offsets = tracker.sample_particles()[:, 0] - tracker.state[0]
     assert np.std(offsets[:3000]) == pytest.approx(2.0, rel=0.06)
     assert np.std(offsets[3000:]) == pytest.approx(8.0, rel=0.08)
+
+
+# -- extensions: estimate, motion mean, positive replacement --------------------------
+
+def test_estimate_is_the_weighted_mean_of_the_top_particles(sequence):
+    tracker = _tracker_after_one_frame(sequence, estimate_count=5)
+    particles, log_weights = tracker.particles, tracker.log_weights
+    top = np.argsort(-log_weights)[:5]
+    weights = np.exp(log_weights[top] - log_weights[top].max())
+    weights /= weights.sum()
+    np.testing.assert_allclose(tracker.state[[0, 1, 3, 5]], weights @ particles[top][:, [0, 1, 3, 5]])
+    # Scale and aspect are averaged in the log: a geometric mean.
+    np.testing.assert_allclose(tracker.state[[2, 4]], np.exp(weights @ np.log(particles[top][:, [2, 4]])))
+    assert not np.array_equal(tracker.state, particles[top[0]])
+
+
+def test_velocity_damping_moves_the_cloud_by_a_share_of_the_last_displacement(sequence):
+    tracker = _tracker_after_one_frame(sequence, propagation="best", velocity_damping=0.5,
+                                       motion_sigmas=(0, 0, 0, 0, 0, 0))
+    tracker.velocity = np.array([4.0, -2.0])
+    drawn = tracker.sample_particles()
+    np.testing.assert_allclose(drawn[:, :2], np.tile(tracker.state[:2] + [2.0, -1.0], (len(drawn), 1)))
+    # The displacement is that of the estimate between frames, and move_to forgets it.
+    before = tracker.state.copy()
+    tracker.update(sequence.frame(2))
+    np.testing.assert_allclose(tracker.velocity, tracker.state[:2] - before[:2])
+    tracker.move_to((30.0, 40.0, 20.0, 25.0))
+    assert np.array_equal(tracker.velocity, [0.0, 0.0])
+
+
+@pytest.mark.parametrize("keep", [False, True])
+def test_full_positive_set_replaces_the_closest_sparing_the_first_frame_if_asked(sequence, keep):
+    tracker = NRMLCTracker(seed=0, n_positive=3, max_positive=5, keep_initial_positives=keep,
+                           update_error_threshold=4.0, occlusion_detection=False, **FAST)
+    tracker.init(sequence.frame(0), sequence.init_box)
+    result = tracker.step(sequence.frame(1))
+    noise = np.random.default_rng(0).standard_normal((3, 1024)).astype(np.float32) / 32
+    first = tracker.positive_templates
+    positives = np.vstack([first, noise[0], first[1] + 0.5 * noise[1]])
+    tracker._set_templates(positives, tracker.negative_templates)
+    # The new result is nearest to the first frame's template 1, then to later template 4.
+    new = first[1] + 0.1 * noise[2]
+    tracker.last_candidates["patches"][tracker.last_candidates["best"]] = new
+    tracker._update_templates(sequence.frame(1), result)
+    replaced = 4 if keep else 1
+    assert np.array_equal(tracker.positive_templates[replaced], new)
+    untouched = [i for i in range(5) if i != replaced]
+    assert np.array_equal(tracker.positive_templates[untouched], positives[untouched])

@@ -132,6 +132,10 @@ class TrackerParams:
         The motion model's mean (the mu of Sec. 2's N(mu, sigma^2), which the paper does
         not give): each particle first moves by this share of the estimate's last
         displacement (*ours*; 0 = the paper's random walk, 1 = constant velocity).
+    antialias : float
+        Low-pass the frame before sampling patches: a Gaussian of std ``antialias *
+        (step - 1)`` image pixels per axis, where step is the size of a template pixel
+        at the current estimate (*ours*; 0 = off, the paper; 0.5 is skimage's rule).
     keep_initial_positives : bool
         When the positive set is full, replace the closest among the templates added
         later, never one of the first frame's ``n_positive`` (*ours*; False = the paper:
@@ -169,6 +173,7 @@ class TrackerParams:
     wide_factor: float = 4.0
     estimate_count: int = 1
     velocity_damping: float = 0.0
+    antialias: float = 0.0
     keep_initial_positives: bool = False
 
     def __post_init__(self) -> None:
@@ -184,7 +189,8 @@ class TrackerParams:
             if isinstance(value, bool) or not isinstance(value, int):
                 fail(name, f"must be an integer, got {value!r}")
         for name in ("positive_radius", "negative_radius", "lam", "beta", "alpha",
-                     "update_error_threshold", "coefficient_tolerance", "positive_sigma", "wide_share", "velocity_damping",
+                     "update_error_threshold", "coefficient_tolerance", "positive_sigma", "wide_share",
+                     "velocity_damping", "antialias",
                      "wide_factor"):
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
@@ -231,6 +237,8 @@ class TrackerParams:
             fail("estimate_count", f"must be in 1..n_particles ({self.n_particles}), got {self.estimate_count}")
         if not 0 <= self.velocity_damping <= 1:
             fail("velocity_damping", f"must be in [0, 1], got {self.velocity_damping}")
+        if not 0 <= self.antialias <= 4:
+            fail("antialias", f"must be in [0, 4], got {self.antialias}")
         if not isinstance(self.keep_initial_positives, bool):
             fail("keep_initial_positives", f"must be True or False, got {self.keep_initial_positives!r}")
         if not 0 <= self.positive_sigma <= MAX_RADIUS:
@@ -298,7 +306,8 @@ PRESETS: dict[str, dict] = {
     "default": {},
     "paper": dict(template_sampling="annulus", propagation="condensation", alpha=2.5,
                   patch_normalization="unit", dictionaries="joint", wide_share=0.0,
-                  estimate_count=1, keep_initial_positives=False, velocity_damping=0.0),
+                  estimate_count=1, keep_initial_positives=False, velocity_damping=0.0,
+                  antialias=0.0),
 }
 
 
