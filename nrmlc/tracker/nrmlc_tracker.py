@@ -237,7 +237,8 @@ class NRMLCTracker:
     def _sample_negatives(self, frame: np.ndarray, state: np.ndarray, first: bool = False) -> np.ndarray:
         p = self.params
         if p.template_sampling == "scm":
-            push = SCM_PUSH_INIT if first else SCM_PUSH_UPDATE
+            # SCM's zones, scaled by negative_push / SCM's 1/4 (the update zone keeps SCM's 4:5 ratio).
+            push = p.negative_push * (1.0 if first else SCM_PUSH_UPDATE / SCM_PUSH_INIT)
             states = scm_negative_states(self.rng, state, p.n_negative, p.patch_size, push)
         else:
             states = negative_states(self.rng, state, p.n_negative, p.positive_radius, p.negative_radius)

@@ -98,6 +98,11 @@ class TrackerParams:
         a coordinate within +-w/4 (+-h/4; +-1/5 at updates) of the target's pushed out
         to the edge of that zone. 'annulus' is Sec. 3 as printed: positives within
         ``positive_radius``, negatives in ``positive_radius < d < negative_radius``.
+    negative_push : float
+        Under 'scm', the half-width of the zone negatives are pushed out of at
+        initialisation, as a fraction of the target's width (height) (SCM: 1/4, so a
+        negative may overlap the target by 3/4); at updates it is 4/5 of this, as SCM's
+        1/5. Larger values keep the negatives off the target.
     positive_sigma : float
         Std (image pixels) of the positive template centres under 'scm' (SCM: 1).
     propagation : {'condensation', 'best'}
@@ -165,6 +170,7 @@ class TrackerParams:
     patch_size: int = PATCH_SIZE
     template_sampling: str = "scm"
     positive_sigma: float = 1.0
+    negative_push: float = 0.25
     propagation: str = "condensation"
     translation_noise: str = "relative"
     patch_normalization: str = "unit"
@@ -189,7 +195,7 @@ class TrackerParams:
             if isinstance(value, bool) or not isinstance(value, int):
                 fail(name, f"must be an integer, got {value!r}")
         for name in ("positive_radius", "negative_radius", "lam", "beta", "alpha",
-                     "update_error_threshold", "coefficient_tolerance", "positive_sigma", "wide_share",
+                     "update_error_threshold", "coefficient_tolerance", "positive_sigma", "negative_push", "wide_share",
                      "velocity_damping", "antialias",
                      "wide_factor"):
             value = getattr(self, name)
@@ -237,6 +243,8 @@ class TrackerParams:
             fail("estimate_count", f"must be in 1..n_particles ({self.n_particles}), got {self.estimate_count}")
         if not 0 <= self.velocity_damping <= 1:
             fail("velocity_damping", f"must be in [0, 1], got {self.velocity_damping}")
+        if not 0 <= self.negative_push <= 2:
+            fail("negative_push", f"must be in [0, 2], got {self.negative_push}")
         if not 0 <= self.antialias <= 4:
             fail("antialias", f"must be in [0, 4], got {self.antialias}")
         if not isinstance(self.keep_initial_positives, bool):
