@@ -23,6 +23,9 @@ Families, each against the default tracker (the first row of each):
   the default vs the paper's 2.5;
 - any other value in which the default departs from the paper preset (e.g. a share of
   wide translation noise, if switched on): the default vs the paper's value;
+- every numeric extension left off by default (:data:`TRIAL_VALUES`: a share of wide
+  translation noise, the estimate as a mean of the top particles, a velocity in the motion
+  model, anti-aliased patches) and SCM's negative push-out zone: the default vs a trial value;
 - the template spread: under SCM sampling the positive centres' sigma (half and
   twice the default), under the annulus the radii r and s (half and twice each).
 
@@ -65,6 +68,12 @@ SCALE_SIGMAS = (0.0025, 0.005, 0.01, 0.02)
 METRICS = (("overlap", "mean overlap", 3), ("cle", "CLE (px)", 1), ("negative_share_c", "negative share of c", 4),
            ("negative_share_w", "negative share of w", 4), ("occluded", "frames occluded", 3))
 
+
+#: Numeric extensions beyond the paper, and lineage values, with a trial value each: a row each
+#: when the default has the paper's (off) value. Their screening on the development sequences,
+#: which chose the defaults, is in docs/FINDINGS.md.
+TRIAL_VALUES = {"wide_share": 0.2, "estimate_count": 20, "velocity_damping": 0.5, "antialias": 0.5,
+                "negative_push": 0.5}
 
 #: Fields with a family of their own below (not repeated as switches).
 OWN_FAMILIES = ("coding", "confidence", "occlusion_detection")
@@ -149,6 +158,11 @@ def families(context) -> list[tuple[str, list[tuple[str, object]]]]:
             if field not in covered:
                 out.append((field.replace("_", " "), [(f"{getattr(base, field)} (default)", base),
                                                       (f"{value} (paper)", base.replace(**{field: value}))]))
+    differing = params_differences(TrackerParams.paper(), base) if hasattr(TrackerParams, "paper") else {}
+    for field, value in TRIAL_VALUES.items():
+        if field in fields and field not in differing and getattr(base, field) != value:
+            out.append((field.replace("_", " "), [(f"{getattr(base, field):g} (default)", base),
+                                                  (f"{value:g}", base.replace(**{field: value}))]))
     if getattr(base, "template_sampling", "annulus") == "annulus":
         r, s = base.positive_radius, base.negative_radius
         out.append(("template radii", [(f"r = {r:g}, s = {s:g} (default)", base)]

@@ -3,6 +3,7 @@ state's range, the log-domain confidence, presets and the API's input checks."""
 import math
 import warnings
 
+import cv2
 import numpy as np
 import pytest
 from hypothesis import given
@@ -179,6 +180,9 @@ def test_any_alpha_ranks_by_the_error_difference_without_overflow(sequence, alph
 def test_presets():
     paper = TrackerParams.paper()
     assert paper.template_sampling == "annulus" and paper.propagation == "condensation"
+    # Every extension beyond the paper is off in the paper preset.
+    assert (paper.wide_share, paper.estimate_count, paper.velocity_damping, paper.antialias) == (0, 1, 0, 0)
+    assert not paper.keep_initial_positives and paper.dictionaries == "joint"
     assert TrackerParams.preset("default") == TrackerParams()
     assert TrackerParams.paper(alpha=3.0).alpha == 3.0
     with pytest.raises(ParameterError, match="preset 'nope'"):
@@ -195,6 +199,12 @@ def test_presets():
     (dict(translation_noise="km"), "translation_noise"),
     (dict(patch_normalization="l1"), "patch_normalization"),
     (dict(positive_sigma=-1.0), "positive_sigma"),
+    (dict(estimate_count=0), "estimate_count"),
+    (dict(estimate_count=700), "estimate_count"),
+    (dict(velocity_damping=1.5), "velocity_damping"),
+    (dict(antialias=-0.1), "antialias"),
+    (dict(negative_push=3.0), "negative_push"),
+    (dict(keep_initial_positives="yes"), "keep_initial_positives"),
 ])
 def test_exhausting_or_unknown_parameters_are_refused_by_name(changes, name):
     with pytest.raises(ParameterError, match=f"parameter {name}"):
@@ -313,3 +323,21 @@ def test_full_positive_set_replaces_the_closest_sparing_the_first_frame_if_asked
     assert np.array_equal(tracker.positive_templates[replaced], new)
     untouched = [i for i in range(5) if i != replaced]
     assert np.array_equal(tracker.positive_templates[untouched], positives[untouched])
+
+
+def test_antialias_blurs_by_the_sampling_step_and_only_when_asked(sequence):
+    frame = np.ascontiguousarray(sequence.frame(0), dtype=np.float32)
+    if frame.ndim == 3:
+        frame = np.ascontiguousarray(frame.mean(axis=2), dtype=np.float32)
+    plain = NRMLCTracker(seed=0, **FAST)
+    smooth = NRMLCTracker(seed=0, antialias=0.5, **FAST)
+    for tracker in (plain, smooth):
+        tracker.init(sequence.frame(0), sequence.init_box)
+    assert plain.prefilter(frame) is frame
+    smooth.state = smooth.state.copy()
+    smooth.state[2], smooth.state[4] = 5.0, 1.0  # a template pixel of 5 image pixels: std 0.5 * 4 = 2
+    blurred = smooth.prefilter(frame)
+    np.testing.assert_allclose(blurred, cv2.GaussianBlur(frame, (0, 0), 2.0, sigmaY=2.0,
+                                                         borderType=cv2.BORDER_REPLICATE), atol=1e-5)
+    smooth.state[2] = 1.0  # a target no larger than the patch is not blurred
+    assert smooth.prefilter(frame) is frame

@@ -34,7 +34,9 @@ class TrackerParams:
     """All parameters of the NRMLC tracker (Sec. 3 and 4 of the paper).
 
     Defaults are the paper's where it gives a value; the others (marked *ours*)
-    are documented choices, identical for every sequence.
+    are documented choices, identical for every sequence. The extensions that are off
+    by default were screened on the development sequences and not adopted
+    (docs/FINDINGS.md, "Choosing the defaults").
 
     Attributes
     ----------
@@ -74,7 +76,7 @@ class TrackerParams:
         nearly uniform, so the cloud diffused; 50 and 100 collapsed it).
     confidence : {'corrected', 'literal'}
         'corrected': h = exp(-alpha (eps_pos - eps_neg)); 'literal': the printed
-        h = 1 / exp(-alpha (eps_pos - eps_neg)) (see the README's deviations).
+        h = 1 / exp(-alpha (eps_pos - eps_neg)) (see docs/DEVIATIONS.md, item 1).
     update_interval : int
         Templates are updated every this many frames (paper: 5).
     max_positive : int
@@ -110,7 +112,7 @@ class TrackerParams:
         particles are resampled in proportion to their confidence h, then diffused by
         the motion model; alpha then sets how peaked the weights are. 'best' draws all
         particles around the previous estimate. Either way the estimate is the most
-        confident particle.
+        confident particle (unless ``estimate_count`` > 1).
     translation_noise : {'pixels', 'relative'}
         'pixels': ``motion_sigmas[0:2]`` are image pixels. 'relative' (L1APG's
         ``draw_sample``): they are template pixels, i.e. multiplied by the target's
@@ -131,8 +133,9 @@ class TrackerParams:
         ``wide_factor`` times larger, so that the cloud can reach a fast-moving target.
     estimate_count : int
         The estimate is the confidence-weighted mean state of this many most confident
-        particles (*ours*; 1 = the paper: the most confident particle). Averaging damps
-        the frame-to-frame jitter of the arg max, which otherwise random-walks the scale.
+        particles (*ours*; 1 = the paper: the most confident particle), to damp the
+        frame-to-frame jitter of the arg max. The positive update then adds the
+        estimate's patch; eps_pos* and LEN(neg*) stay those of the most confident.
     velocity_damping : float
         The motion model's mean (the mu of Sec. 2's N(mu, sigma^2), which the paper does
         not give): each particle first moves by this share of the estimate's last
@@ -194,10 +197,9 @@ class TrackerParams:
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, int):
                 fail(name, f"must be an integer, got {value!r}")
-        for name in ("positive_radius", "negative_radius", "lam", "beta", "alpha",
-                     "update_error_threshold", "coefficient_tolerance", "positive_sigma", "negative_push", "wide_share",
-                     "velocity_damping", "antialias",
-                     "wide_factor"):
+        for name in ("positive_radius", "negative_radius", "lam", "beta", "alpha", "update_error_threshold",
+                     "coefficient_tolerance", "positive_sigma", "negative_push", "wide_share", "wide_factor",
+                     "velocity_damping", "antialias"):
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
                 fail(name, f"must be a finite number, got {value!r}")
