@@ -149,16 +149,15 @@ def families(context) -> list[tuple[str, list[tuple[str, object]]]]:
          + ([(f"α = {PAPER_ALPHA:g} (paper)", base.replace(alpha=PAPER_ALPHA))] if base.alpha != PAPER_ALPHA else [])),
     ]
     # Any other value in which the default departs from the paper preset: a row with the paper's.
-    if hasattr(TrackerParams, "paper"):
-        covered = {field for _, field in switches()} | set(OWN_FAMILIES) | {
-            "alpha", "motion_sigmas", "n_particles", "dictionary_sizes", "lam", "beta", "positive_sigma",
-            "positive_radius", "negative_radius"}
-        paper_preset = TrackerParams.paper()
-        for field, value in sorted(params_differences(paper_preset, base).items()):
-            if field not in covered:
-                out.append((field.replace("_", " "), [(f"{getattr(base, field)} (default)", base),
-                                                      (f"{value} (paper)", base.replace(**{field: value}))]))
     differing = params_differences(TrackerParams.paper(), base) if hasattr(TrackerParams, "paper") else {}
+    covered = {field for _, field in switches()} | set(OWN_FAMILIES) | {
+        "alpha", "motion_sigmas", "n_particles", "dictionary_sizes", "lam", "beta", "positive_sigma",
+        "positive_radius", "negative_radius"}
+    for field, value in sorted(differing.items()):
+        if field not in covered:
+            out.append((field.replace("_", " "), [(f"{getattr(base, field)} (default)", base),
+                                                  (f"{value} (paper)", base.replace(**{field: value}))]))
+    # A numeric extension the default leaves at the paper's value: a row with its trial value.
     for field, value in TRIAL_VALUES.items():
         if field in fields and field not in differing and getattr(base, field) != value:
             out.append((field.replace("_", " "), [(f"{getattr(base, field):g} (default)", base),
