@@ -14,7 +14,8 @@ Per frame:
    and combine the codes with dictionary weights w (Algorithm 1, eq. allcw)
    (:mod:`nrmlc.kernels.coding`);
 5. score each candidate with log h = -alpha (eps_pos - eps_neg) (in the log domain, so
-   no alpha overflows) and keep the best;
+   no alpha overflows); the estimate is the most confident candidate, or the
+   confidence-weighted mean of the ``estimate_count`` most confident;
 6. every ``update_interval`` frames, resample the negative templates around the
    estimate and, unless the target is judged occluded (LEN(neg*) too large),
    add the result to the positive templates when eps_pos* < threshold.
@@ -38,6 +39,11 @@ from nrmlc.tracker.templates import (SCM_PUSH_INIT, SCM_PUSH_UPDATE, negative_st
                                      scm_negative_states, scm_positive_states)
 
 MIN_BOX_SIZE = 4.0
+#: ``prefilter`` skips blurs narrower than this (image px): such a Gaussian gives the
+#: neighbouring pixels a weight of about exp(-200), i.e. it changes nothing.
+MIN_BLUR_SIGMA = 0.05
+#: OpenCV reads a sigma of 0 as "derive it from the kernel size": the other axis's floor.
+BLUR_SIGMA_FLOOR = 1e-3
 
 
 def as_gray_frame(image: np.ndarray) -> np.ndarray:
@@ -315,9 +321,10 @@ class NRMLCTracker:
         step_x = self.state[2]
         step_y = self.state[2] * self.state[4]
         sigma_x, sigma_y = factor * max(step_x - 1.0, 0.0), factor * max(step_y - 1.0, 0.0)
-        if sigma_x < 0.05 and sigma_y < 0.05:
+        if sigma_x < MIN_BLUR_SIGMA and sigma_y < MIN_BLUR_SIGMA:
             return frame
-        return cv2.GaussianBlur(frame, (0, 0), sigmaX=max(sigma_x, 1e-3), sigmaY=max(sigma_y, 1e-3),
+        return cv2.GaussianBlur(frame, (0, 0), sigmaX=max(sigma_x, BLUR_SIGMA_FLOOR),
+                                sigmaY=max(sigma_y, BLUR_SIGMA_FLOOR),
                                 borderType=cv2.BORDER_REPLICATE)
 
     def sample_particles(self) -> np.ndarray:
