@@ -102,6 +102,13 @@ def run_track(args: argparse.Namespace) -> int:
         from nrmlc.video import check_video_path
 
         check_video_path(args.video)
+    if args.threads is not None:
+        import numba
+
+        if args.threads > numba.config.NUMBA_NUM_THREADS:
+            # set_threads would cap it silently; on the command line that hides a typo.
+            raise ParameterError(f"--threads {args.threads}: at most {numba.config.NUMBA_NUM_THREADS} here "
+                                 f"(numba's thread pool, NUMBA_NUM_THREADS)")
     set_threads(args.threads)
     sequence = open_sequence(args.sequence, target=args.target)
     init_box = None

@@ -205,6 +205,9 @@ def check_output(path: str | os.PathLike, option: str, inputs: Iterable[str | os
     where = f"{option} {text}"
     if not text.strip():
         raise ParameterError(f"{option}: empty path")
+    if text == "-":
+        raise ParameterError(f"{option} -: standard output is not supported (results are written atomically); "
+                             f"give a file name")
     if text.endswith((os.sep, "/")) or os.path.basename(text) in (".", ".."):
         raise ParameterError(f"{where}: names a folder; give a file name")
     try:

@@ -201,6 +201,7 @@ BAD_INPUT = {
     "param-wrong-length": (_nothing, ["--param", "motion_sigmas=1,2"], r"parameter motion_sigmas: must be 6"),
     "zero-frames": (_nothing, ["--frames", "0"], r"--frames must be >= 1"),
     "zero-threads": (_nothing, ["--threads", "0"], r"threads must be >= 1"),
+    "too-many-threads": (_nothing, ["--threads", "100000"], r"--threads 100000: at most \d+ here"),
     "negative-seed": (_nothing, ["--seed", "-1"], r"parameter seed: must be a non-negative integer"),
     # the other commands
     "evaluate-missing-results": (_nothing, ["evaluate", "--results", "{seq}/absent.txt", "--groundtruth",
@@ -230,6 +231,7 @@ BAD_INPUT = {
     "target-zero": (_nothing, ["--target", "0"], r"--target must be >= 1, got 0"),
     "video-extension": (_nothing, ["--video", "{seq}/../v.xyz"], r"--video .*v\.xyz: unknown video extension '\.xyz'"),
     "video-no-extension": (_nothing, ["--video", "{seq}/../video"], r"unknown video extension '\(none\)'"),
+    "out-is-stdout": (_nothing, ["track", "{seq}", "--out", "-"], r"--out -: standard output is not supported"),
     "out-is-groundtruth": (_nothing, ["track", "{seq}", "--out", "{seq}/groundtruth_rect.txt"],
                            r"--out \S*groundtruth_rect\.txt: is an input of this run"),
     "synth-count-zero": (_nothing, ["synth", "--out", "{seq}/../synth", "--count", "0"], r"--count must be in 1\.\.1000, got 0"),
