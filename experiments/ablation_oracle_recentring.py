@@ -30,7 +30,7 @@ import numpy as np
 from experiments import paper_numbers as paper
 from experiments.grid import script_main
 from experiments.sequence_sets import paper_name
-from experiments.tables import clean, fmt, mean_std, save_figure, write_csv
+from experiments.tables import fmt, mean_std, save_figure, write_csv
 from nrmlc import io
 
 STEM = "ablation_oracle_recentring"
@@ -121,7 +121,7 @@ def report(context, data: dict) -> dict:
     labels = [period_label(p) for p in data["periods"]]
     header = ["sequence"] + labels + [f"{k} std" for k in labels] + [f"{k} cle" for k in labels] + ["paper"]
     write_csv(context.output(STEM, ".csv"), header, [[r[k] for k in header] for r in data["rows"]])
-    io.write_json(context.output(STEM, ".json"), clean(dict(data, title=TITLE)))
+    io.write_json(context.output(STEM, ".json"), dict(data, title=TITLE))
 
     text = [f"Mean overlap (± std over seeds {data['seeds']}) when the estimate is moved to the ground truth "
             "every R frames; free = the ordinary default runs. Diagnostic only."

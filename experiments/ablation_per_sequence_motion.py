@@ -38,7 +38,7 @@ import numpy as np
 from experiments import paper_numbers as paper
 from experiments.grid import script_main
 from experiments.sequence_sets import paper_name
-from experiments.tables import clean, fmt, mean_std, save_figure, write_csv
+from experiments.tables import fmt, mean_std, save_figure, write_csv
 from nrmlc import io
 
 STEM = "ablation_per_sequence_motion"
@@ -159,7 +159,7 @@ def report(context, data: dict) -> dict:
     write_csv(context.output(STEM, ".csv"), header,
               [[r["sequence"], " ".join(f"{v:g}" for v in r["motion_sigmas_classic"])] + [r[k] for k in header[2:]]
                for r in data["rows"]])
-    io.write_json(context.output(STEM, ".json"), clean(dict(data, title=TITLE, classic_motion=CLASSIC_MOTION)))
+    io.write_json(context.output(STEM, ".json"), dict(data, title=TITLE, classic_motion=CLASSIC_MOTION))
 
     if not data["rows"]:
         return {"title": TITLE, "figures": [f"{STEM}.png"],

@@ -48,7 +48,7 @@ import numpy as np
 from experiments import paper_numbers as paper
 from experiments.grid import params_differences, score, script_main
 from experiments.sequence_sets import paper_name
-from experiments.tables import clean, fmt, mean_std, save_figure, write_csv
+from experiments.tables import fmt, mean_std, save_figure, write_csv
 from experiments.fig4_lambda_sweep import plain_params
 from nrmlc import io
 
@@ -272,7 +272,7 @@ def report(context, data: dict) -> dict:
                                               else (None, None))])
     write_csv(context.output(STEM, ".csv"), ["family", "config", "sequence"] + [c for k in keys for c in (k, f"{k}_std")],
               rows)
-    io.write_json(context.output(STEM, ".json"), clean(dict(data, title=TITLE)))
+    io.write_json(context.output(STEM, ".json"), dict(data, title=TITLE))
 
     names = ", ".join(f"{n} ({paper_name(n)})" if paper_name(n) not in (None, n) else n for n in data["sequences"])
     text = [f"On {names}; mean ± std over seeds {data['seeds']} of the across-sequence average"

@@ -44,7 +44,7 @@ import numpy as np
 
 from experiments.grid import score, script_main
 from experiments.internals import describe_params
-from experiments.tables import clean, fmt, mean_std, save_figure, write_csv
+from experiments.tables import fmt, mean_std, save_figure, write_csv
 from nrmlc import io
 
 STEM = "failure_mechanisms"
@@ -316,7 +316,7 @@ def report(context, data: dict) -> dict:
                         + [m["lost_frame"], m["lost_fraction"], None, 1])
     write_csv(context.output(STEM, ".csv"), header, rows)
     averages = {f"{label} / {config}": values for (label, config), values in data["averages"].items()}
-    io.write_json(context.output(STEM, ".json"), clean(dict(data, averages=averages, title=TITLE)))
+    io.write_json(context.output(STEM, ".json"), dict(data, averages=averages, title=TITLE))
 
     configs = data["configs"]
     most_updates = " / ".join(f"{100 / c['update_interval']:g}" for c in configs)

@@ -20,7 +20,7 @@ import numpy as np
 from experiments import peers
 from experiments.grid import script_main
 from experiments.sequence_sets import paper_name
-from experiments.tables import clean, save_figure
+from experiments.tables import save_figure
 from nrmlc import io
 
 STEM = "fig3_qualitative"
@@ -126,12 +126,12 @@ def plot(data: dict, path) -> None:
 
 def report(context, data: dict) -> dict:
     """Write the numbers (CSV/JSON); returns the report section (``title``, ``figures``, ``markdown``)."""
-    io.write_json(context.output(STEM, ".json"), clean({
+    io.write_json(context.output(STEM, ".json"), {
         "seed": data["seed"],
         "sequences": [{"sequence": row["sequence"].name, "frames_1_based": [f + 1 for f in row["frames"]],
                        "boxes": {name: {str(f + 1): list(b) for f, b in boxes.items()}
                                  for name, boxes in row["boxes"].items()}} for row in data["rows"]],
-        "notes": data["notes"]}))
+        "notes": data["notes"]})
     names = [row["sequence"].name for row in data["rows"]]
     in_paper = [n for n in names if (paper_name(n) or n).lower() in {s.lower() for s in PAPER_FIG3}
                 or n.lower() in {s.lower() for s in PAPER_FIG3}]

@@ -21,7 +21,7 @@ import numpy as np
 from experiments import paper_numbers as paper
 from experiments.grid import score, script_main
 from experiments.sequence_sets import paper_name
-from experiments.tables import clean, fmt, mean_std, save_figure, write_csv
+from experiments.tables import fmt, mean_std, save_figure, write_csv
 from nrmlc import io
 
 STEM = "fig4_lambda_sweep"
@@ -108,10 +108,10 @@ def report(context, data: dict) -> dict:
                  for name, v in p["by_sequence"].items()]
     write_csv(context.output(STEM, ".csv"), ["config", "coding", "lambda", "beta", "sequence", "overlap", "overlap_std"],
               rows)
-    io.write_json(context.output(STEM, ".json"), clean(dict(
+    io.write_json(context.output(STEM, ".json"), dict(
         data, title=TITLE, paper={"lambdas": paper.FIG4_LAMBDAS, "no_regularisation_overlap":
                                   paper.FIG4_NO_REGULARISATION_OVERLAP, "best_lambda": paper.FIG4_BEST_LAMBDA,
-                                  "overlap_at_best": paper.OVERLAP_AVERAGE["Ours"]})))
+                                  "overlap_at_best": paper.OVERLAP_AVERAGE["Ours"]}))
 
     sweep = [p for p in data["points"] if p["coding"] == "regularized"]
     best = max(sweep, key=lambda p: p["overlap"])

@@ -334,7 +334,7 @@ def json_report(stem: str):
     """``report`` of a script whose ``collect`` returns ``{"result", "section", ...}``: it writes
     ``result`` as ``<stem>.json`` and returns ``section``."""
     def report(context, data: dict) -> dict:
-        from experiments.tables import write_json
+        from nrmlc.io import write_json
 
         write_json(context.output(stem, ".json"), data["result"])
         return data["section"]

@@ -26,7 +26,8 @@ from experiments.internals import (
     describe_params, dictionary_weights, limit, max_offdiag_row_sum, pooled, strictly_dd, sum_to_one_codes,
     tracker_params,
 )
-from experiments.tables import fmt, percentiles, save_figure, write_csv, write_json
+from experiments.tables import fmt, percentiles, save_figure, write_csv
+from nrmlc.io import write_json
 
 STEM = "stats_nonnegativity"
 SIZES = (5, 8, 10)

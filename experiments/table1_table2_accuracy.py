@@ -29,7 +29,7 @@ from experiments import paper_numbers as paper
 from experiments import peers
 from experiments.grid import params_differences, score, script_main
 from experiments.sequence_sets import paper_name
-from experiments.tables import clean, fmt, mean_std, save_figure, write_csv
+from experiments.tables import fmt, mean_std, save_figure, write_csv
 from nrmlc import io
 from nrmlc.metrics import PRECISION_THRESHOLDS, SUCCESS_THRESHOLDS
 from nrmlc.tracker.params import TrackerParams
@@ -304,16 +304,16 @@ def _json(data: dict) -> dict:
     curves = {label: cs for label, (_, cs) in data["curves"].items()}
     cells = {n: {c: {k: v for k, v in cell.items() if k not in ("success", "precision")} for c, cell in row.items()}
              for n, row in data["cells"].items()}
-    return clean({"title": TITLE, "seeds": data["seeds"], "frames": data["frames"], "columns": data["columns"],
-                  "blocks": data["blocks"], "cells": cells, "averages": data["averages"], "fps": data["fps"],
-                  "per_seed": {n: {str(s): {"overlap": v[0], "cle": v[1]} for s, v in d.items()}
-                               for n, d in data["per_seed"].items()},
-                  "curves": {label: {c: dict(v, success=list(v["success"]), precision=list(v["precision"]))
-                                     for c, v in cs.items()} for label, cs in curves.items()},
-                  "success_thresholds": list(SUCCESS_THRESHOLDS), "precision_thresholds": list(PRECISION_THRESHOLDS),
-                  "notes": data["notes"],
-                  "paper": {"cle": paper.CLE, "overlap": paper.OVERLAP, "cle_average": paper.CLE_AVERAGE,
-                            "overlap_average": paper.OVERLAP_AVERAGE, "fps": paper.FPS}})
+    return {"title": TITLE, "seeds": data["seeds"], "frames": data["frames"], "columns": data["columns"],
+           "blocks": data["blocks"], "cells": cells, "averages": data["averages"], "fps": data["fps"],
+           "per_seed": {n: {str(s): {"overlap": v[0], "cle": v[1]} for s, v in d.items()}
+                        for n, d in data["per_seed"].items()},
+           "curves": {label: {c: dict(v, success=list(v["success"]), precision=list(v["precision"]))
+                              for c, v in cs.items()} for label, cs in curves.items()},
+           "success_thresholds": list(SUCCESS_THRESHOLDS), "precision_thresholds": list(PRECISION_THRESHOLDS),
+           "notes": data["notes"],
+           "paper": {"cle": paper.CLE, "overlap": paper.OVERLAP, "cle_average": paper.CLE_AVERAGE,
+                     "overlap_average": paper.OVERLAP_AVERAGE, "fps": paper.FPS}}
 
 
 def report(context, data: dict) -> dict:

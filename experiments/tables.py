@@ -1,7 +1,7 @@
 """Numbers into files: the one number formatter, mean ± std, strict JSON, CSV and PNG writers.
 
 Every experiment script formats its tables with :func:`fmt` and writes through
-:func:`write_csv`, :func:`clean` (for :func:`nrmlc.io.write_json`) and
+:func:`write_csv` and
 :func:`save_figure`, all atomic (a killed run leaves the old file or the new one).
 """
 from __future__ import annotations
@@ -51,28 +51,6 @@ def fmt(value, digits: int | None = None, std=None) -> str:
     if std is not None and math.isfinite(std):
         text += f" ± {std:.{digits}f}"
     return text
-
-
-def clean(obj):
-    """``obj`` with NaN/inf floats replaced by None, ready for strict JSON."""
-    if isinstance(obj, dict):
-        return {str(k): clean(v) for k, v in obj.items()}
-    if isinstance(obj, (list, tuple)):
-        return [clean(v) for v in obj]
-    if isinstance(obj, float) and not math.isfinite(obj):
-        return None
-    if isinstance(obj, np.ndarray):
-        return clean(obj.tolist())
-    if isinstance(obj, np.generic):
-        return clean(obj.item())
-    return obj
-
-
-def write_json(path, obj) -> Path:
-    """Write ``obj`` as strict JSON (NaN/inf as null), atomically."""
-    from nrmlc import io
-
-    return io.write_json(path, clean(obj))
 
 
 def write_csv(path, header: list[str], rows: list[list]) -> Path:

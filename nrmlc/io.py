@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import errno
 import json
+import math
 import os
 import stat
 import tempfile
@@ -266,19 +267,29 @@ def write_text(path: str | os.PathLike, text: str) -> Path:
     return _atomic(path, lambda f: f.write(text), "w")
 
 
+def json_ready(obj: Any) -> Any:
+    """``obj`` with numpy arrays and scalars as Python values, paths as strings and NaN/inf
+    floats as None, so that it is strict JSON (``json.dumps`` would write NaN, which
+    JavaScript, jq and most other readers refuse)."""
+    if isinstance(obj, dict):
+        return {str(k): json_ready(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [json_ready(v) for v in obj]
+    if isinstance(obj, np.ndarray):
+        return json_ready(obj.tolist())
+    if isinstance(obj, np.generic):
+        return json_ready(obj.item())
+    if isinstance(obj, float) and not math.isfinite(obj):
+        return None
+    if isinstance(obj, Path):
+        return str(obj)
+    return obj
+
+
 def write_json(path: str | os.PathLike, obj: Any) -> Path:
-    """Write ``obj`` as indented JSON atomically (numpy scalars/arrays allowed)."""
-
-    def default(o: Any) -> Any:
-        if isinstance(o, np.ndarray):
-            return o.tolist()
-        if isinstance(o, np.generic):
-            return o.item()
-        if isinstance(o, Path):
-            return str(o)
-        raise TypeError(f"not JSON serialisable: {type(o).__name__}")
-
-    return write_text(path, json.dumps(obj, indent=2, default=default) + "\n")
+    """Write ``obj`` as indented, strict JSON atomically (:func:`json_ready`: numpy values
+    allowed, NaN/inf written as null)."""
+    return write_text(path, json.dumps(json_ready(obj), indent=2, allow_nan=False) + "\n")
 
 
 def write_npz(path: str | os.PathLike, **arrays: np.ndarray) -> Path:

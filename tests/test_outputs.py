@@ -345,3 +345,16 @@ def test_failure_writing_one_output_keeps_every_earlier_output(seq, tmp_path, ca
     for path in (out, video, diagnostics):
         assert path.read_bytes() == b"earlier " + path.name.encode()
     assert not temporaries(tmp_path)
+
+
+def test_json_is_strict_whatever_the_values(tmp_path):
+    import json
+
+    def refuse(constant):
+        raise ValueError(f"non-standard JSON constant {constant}")
+
+    path = io.write_json(tmp_path / "r.json", {"nan": float("nan"), "inf": np.float32("inf"), 3: np.arange(2),
+                                               "row": (np.float64(0.5), -np.inf), "path": tmp_path})
+    # json.loads would accept NaN; parse_constant makes it fail as JavaScript or jq would.
+    assert json.loads(path.read_text(), parse_constant=refuse) == {
+        "nan": None, "inf": None, "3": [0, 1], "row": [0.5, None], "path": str(tmp_path)}
