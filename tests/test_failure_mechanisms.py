@@ -113,3 +113,47 @@ def test_tiny_grid_end_to_end(tmp_path, monkeypatch):
         assert 0 <= row["no_positive"] <= 1 and 0 <= row["occluded"] <= 1 and 0 <= row["overlap"] <= 1
         assert row["scale_median"] > 0 and 0 < row["held"] <= 1
     assert section["title"] == script.TITLE and "| synth-01 |" in section["markdown"]
+
+
+def _track(steps, size=(32.0, 32.0)):
+    """A ground truth whose centre moves by ``steps`` (px along x), the box ``size``, frame 3 unannotated."""
+    from types import SimpleNamespace
+
+    x = np.concatenate([[10.0], 10.0 + np.cumsum(steps)])
+    truth = np.stack([x, np.full_like(x, 5.0), np.full_like(x, size[0]), np.full_like(x, size[1])], axis=1)
+    truth[3] = np.nan
+    return SimpleNamespace(groundtruth=truth)
+
+
+@pytest.mark.parametrize("noise", ["pixels", "relative"])
+def test_fast_steps_count_centre_moves_beyond_three_sigma(noise):
+    from nrmlc.tracker.params import TrackerParams
+
+    # 32x32 px boxes: a template pixel is 1 image pixel, so both noises are 2 px per frame.
+    params = TrackerParams(translation_noise=noise, motion_sigmas=(2.0, 2.0, 0.01, 0.0, 0.005, 0.0))
+    sequence = _track([1.0, 7.0, 100.0, 100.0, 5.0, 6.1, 0.0])
+    share, largest = script.fast_steps(sequence, params)
+    # Pairs (0,1) (1,2) (4,5) (5,6) (6,7) are annotated; (2,3) and (3,4) touch the unannotated frame 3.
+    # Steps in sigma: 3.5, 2.5, 3.05, 0: two of five beyond 3.
+    assert share == pytest.approx(2 / 5) and largest == pytest.approx(3.5)
+    # Twice the box: twice the relative noise, the same pixel noise.
+    share_big, _ = script.fast_steps(_track([1.0, 7.0, 100.0, 100.0, 5.0, 6.1, 0.0], (64.0, 64.0)), params)
+    assert share_big == pytest.approx(0.0 if noise == "relative" else 2 / 5)
+
+
+def test_shortfalls_name_the_mechanisms_past_their_thresholds():
+    base = dict(config="default", no_positive=0.1, updates_per_100=10.0, occluded=0.2, scale_last=1.0,
+                fast_share=0.0, fast_max=2.0, lost_runs=0, lost_fraction=None, n_runs=5)
+    rows = [dict(base, sequence="Deer", overlap=0.19, no_positive=0.84, fast_share=0.7, fast_max=9.0,
+                 lost_runs=4, lost_fraction=0.27),
+            dict(base, sequence="Occlusion2", overlap=0.39, scale_last=0.26),
+            dict(base, sequence="Occlusion1", overlap=0.75),
+            dict(base, sequence="CarScale", overlap=0.73),           # above the paper's 0.70: not listed
+            dict(base, sequence="Car4", overlap=0.2, config="paper"),  # only the default is judged
+            dict(base, sequence="Dog", overlap=0.1)]                  # not one of the paper's sequences
+    lines = script.shortfalls({"rows": rows})
+    assert [line.split(":")[0] for line in lines] == ["Deer", "Occlusion2", "Occlusion1"]
+    assert "0.19 against 0.57" in lines[0] and "update starvation" in lines[0] and "motion beyond reach" in lines[0]
+    assert "lock lost in 4 of 5 runs" in lines[0] and "scale drift" not in lines[0]
+    assert "scale drift (the box 0.26" in lines[1] and "starvation" not in lines[1]
+    assert "lock never lost" in lines[2] and "none of the four measures" in lines[2]
