@@ -133,12 +133,12 @@ def test_fast_steps_count_centre_moves_beyond_three_sigma(noise):
     params = TrackerParams(translation_noise=noise, motion_sigmas=(2.0, 2.0, 0.01, 0.0, 0.005, 0.0))
     sequence = _track([1.0, 7.0, 100.0, 100.0, 5.0, 6.1, 0.0])
     share, largest = script.fast_steps(sequence, params)
-    # Pairs (0,1) (1,2) (4,5) (5,6) (6,7) are annotated; (2,3) and (3,4) touch the unannotated frame 3.
-    # Steps in sigma: 3.5, 2.5, 3.05, 0: two of five beyond 3.
-    assert share == pytest.approx(2 / 5) and largest == pytest.approx(3.5)
+    # Steps between annotated frames: 0-1, 1-2, 2-4 (over the unannotated frame 3: 200 px in 2
+    # frames, 200 / (2 sqrt 2) = 70.7 sigma), 4-5, 5-6, 6-7. In sigma: 0.5, 3.5, 70.7, 2.5, 3.05, 0.
+    assert share == pytest.approx(3 / 6) and largest == pytest.approx(100 / np.sqrt(2))
     # Twice the box: twice the relative noise, the same pixel noise.
     share_big, _ = script.fast_steps(_track([1.0, 7.0, 100.0, 100.0, 5.0, 6.1, 0.0], (64.0, 64.0)), params)
-    assert share_big == pytest.approx(0.0 if noise == "relative" else 2 / 5)
+    assert share_big == pytest.approx(1 / 6 if noise == "relative" else 3 / 6)
 
 
 def test_shortfalls_name_the_mechanisms_past_their_thresholds():
