@@ -17,7 +17,10 @@ Examples
 
 It prints, per sequence, the mean overlap (over seeds) of the configuration, the
 baseline and each OpenCV tracker (MIL; KCF and CSRT with opencv-contrib), and the
-means over the sequences; ``--json PATH`` writes the same numbers.
+means over the sequences; then the paired difference configuration - baseline with its
+standard error over seeds (:func:`paired_difference`), for the real sequences and the
+synthetic suite apart: the numbers the adoption rule reads (docs/FINDINGS.md). ``--json
+PATH`` writes the same numbers.
 """
 from __future__ import annotations
 
@@ -82,6 +85,32 @@ def peer_overlaps(cache: RunCache, sequences, max_frames, jobs) -> dict:
     return table
 
 
+def paired_difference(config_runs: dict, baseline_runs: dict, names) -> dict:
+    """Configuration minus baseline, paired by seed, over the sequences ``names``.
+
+    Parameters
+    ----------
+    config_runs, baseline_runs : dict of str -> list of float
+        Per sequence, the mean overlap of each seed (the same seeds, in the same order).
+    names : sequence of str
+        The sequences to average over.
+
+    Returns
+    -------
+    dict
+        ``per_seed`` (n_seeds,): the difference of the across-sequence means for each seed;
+        ``mean`` and ``standard_error`` (its std over seeds / sqrt(n_seeds); NaN with one seed);
+        ``up`` / ``down``: sequences whose mean over seeds rose / fell; ``n``: sequences.
+    """
+    config = np.array([config_runs[n] for n in names], dtype=np.float64)      # (n_sequences, n_seeds)
+    baseline = np.array([baseline_runs[n] for n in names], dtype=np.float64)
+    per_seed = (config - baseline).mean(axis=0)
+    error = float(per_seed.std(ddof=1) / np.sqrt(per_seed.size)) if per_seed.size > 1 else float("nan")
+    change = (config - baseline).mean(axis=1)
+    return {"per_seed": per_seed.tolist(), "mean": float(per_seed.mean()), "standard_error": error,
+            "up": int(np.sum(change > 0)), "down": int(np.sum(change < 0)), "n": len(names)}
+
+
 def format_table(names, columns: dict) -> str:
     """Markdown table: one row per sequence plus the mean; ``columns`` maps a header to
     {sequence: value}."""
@@ -141,9 +170,17 @@ def main(argv=None) -> int:
     order = [s.name for s in sequences]
     config_runs = mean_overlaps(cache, config, sequences, seeds, args.max_frames, args.jobs)
     columns = {"config": {n: float(np.mean(v)) for n, v in config_runs.items()}}
+    baseline_runs, differences = None, {}
     if baseline != config and not args.no_baseline:
         baseline_runs = mean_overlaps(cache, baseline, sequences, seeds, args.max_frames, args.jobs)
         columns["baseline"] = {n: float(np.mean(v)) for n, v in baseline_runs.items()}
+        from nrmlc.data.synthetic import SyntheticSequence
+
+        synthetic = {s.name for s in sequences if isinstance(s, SyntheticSequence)}
+        for label, group in (("development sequences", [n for n in order if n not in synthetic]),
+                             ("synthetic suite", [n for n in order if n in synthetic])):
+            if group:
+                differences[label] = paired_difference(config_runs, baseline_runs, group)
     if not args.no_peers:
         for tracker, values in peer_overlaps(cache, sequences, args.max_frames, args.jobs).items():
             columns[f"{tracker} (OpenCV)"] = values
@@ -151,9 +188,15 @@ def main(argv=None) -> int:
     print(f"config: preset {args.preset} {changed or ''}; baseline: preset {args.baseline_preset} "
           f"{args.baseline_param or ''}; seeds {','.join(map(str, seeds))}; mean overlap")
     print(format_table(order, columns))
+    for label, d in differences.items():
+        spread = (f"± {d['standard_error']:.3f} (paired by seed; standard error over {len(seeds)} seeds)"
+                  if len(seeds) > 1 else "(one seed: no standard error)")
+        print(f"config - baseline on the {label}: {d['mean']:+.3f} {spread}; {d['up']} of {d['n']} up, "
+              f"{d['down']} down")
     if args.json:
         io.write_json(args.json, {"config": config.as_dict(), "baseline": baseline.as_dict(), "seeds": seeds,
-                                  "per_seed": config_runs, "columns": columns})
+                                  "per_seed": config_runs, "baseline_per_seed": baseline_runs, "columns": columns,
+                                  "differences": differences})
     return 0
 
 

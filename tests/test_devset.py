@@ -1,6 +1,7 @@
 """experiments.devset: the development evaluation command."""
 import json
 
+import numpy as np
 import pytest
 
 from experiments import devset
@@ -26,10 +27,29 @@ def test_configuration_beside_its_baseline_on_the_synthetic_suite(tmp_path, caps
     numbers = json.loads(out.read_text())
     assert numbers["config"]["alpha"] == 25.0 and numbers["baseline"]["alpha"] == 2.5
     assert set(numbers["columns"]) == {"config", "baseline"}
+    # The paired difference, for the synthetic suite only (no real sequence was asked for).
+    assert "config - baseline on the synthetic suite:" in table and "development sequences:" not in table
+    assert set(numbers["differences"]) == {"synthetic suite"}
+    difference = numbers["differences"]["synthetic suite"]
+    assert difference["mean"] == pytest.approx(numbers["columns"]["config"]["synth-01"]
+                                               - numbers["columns"]["baseline"]["synth-01"])
     # A rerun computes nothing: every run is in the cache.
     files = sorted(p.name for p in (tmp_path / "cache").iterdir())
     assert devset.main(argv) == 0
     assert sorted(p.name for p in (tmp_path / "cache").iterdir()) == files
+
+
+def test_paired_difference_by_hand():
+    config = {"a": [0.5, 0.7, 0.6], "b": [0.2, 0.2, 0.2]}
+    baseline = {"a": [0.4, 0.4, 0.4], "b": [0.3, 0.2, 0.2]}
+    d = devset.paired_difference(config, baseline, ["a", "b"])
+    # Per seed: mean(0.1, -0.1) = 0, mean(0.3, 0) = 0.15, mean(0.2, 0) = 0.1.
+    assert d["per_seed"] == pytest.approx([0.0, 0.15, 0.1])
+    assert d["mean"] == pytest.approx(0.25 / 3)
+    assert d["standard_error"] == pytest.approx(np.std([0.0, 0.15, 0.1], ddof=1) / np.sqrt(3))
+    # a rose (0.6 against 0.4); b fell (0.2 against 0.2333).
+    assert (d["up"], d["down"], d["n"]) == (1, 1, 2)
+    assert np.isnan(devset.paired_difference({"a": [0.5]}, {"a": [0.4]}, ["a"])["standard_error"])
 
 
 def test_a_paper_sequence_is_refused_as_a_development_sequence(capsys):
