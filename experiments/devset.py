@@ -34,6 +34,7 @@ from experiments.grid import score, specs_for
 from experiments.sequence_sets import DEVELOPMENT_SEQUENCES
 from nrmlc import io
 from nrmlc.config import data_root_from_env
+from nrmlc.data.synthetic import SyntheticSequence
 from nrmlc.errors import NrmlcError
 from nrmlc.benchmark import parse_seeds
 from nrmlc.runner import DEFAULT_CACHE, RunCache
@@ -174,8 +175,6 @@ def main(argv=None) -> int:
     if baseline != config and not args.no_baseline:
         baseline_runs = mean_overlaps(cache, baseline, sequences, seeds, args.max_frames, args.jobs)
         columns["baseline"] = {n: float(np.mean(v)) for n, v in baseline_runs.items()}
-        from nrmlc.data.synthetic import SyntheticSequence
-
         synthetic = {s.name for s in sequences if isinstance(s, SyntheticSequence)}
         for label, group in (("development sequences", [n for n in order if n not in synthetic]),
                              ("synthetic suite", [n for n in order if n in synthetic])):
