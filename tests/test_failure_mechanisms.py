@@ -19,7 +19,8 @@ N = 40
 def hand_made_run(sequence, lose_at: int | None = 30) -> TrackResult:
     """Frames 0-19 on the ground truth; 20-29 half its width and height about its centre
     (IoU 0.25, scale ratio 0.5); from ``lose_at`` on, twice its size and far away (IoU 0,
-    ratio 2). eps_pos* = 1 on frames 1-10, occluded on 3 frames, 4 positive updates."""
+    ratio 2). eps_pos* = 1 on frames 1-10 and 0.5 from frame 35 (0.05 elsewhere), occluded on
+    3 frames, 5 positive updates (at frame 20 with the box at IoU 0.25; at 33 after any loss)."""
     truth = np.asarray(sequence.groundtruth[:N], dtype=np.float64)
     boxes = truth.copy()
     x, y, w, h = truth.T
@@ -30,10 +31,11 @@ def hand_made_run(sequence, lose_at: int | None = 30) -> TrackResult:
     error_positive = np.full(N, 0.05)
     error_positive[0] = np.nan
     error_positive[1:11] = 1.0
+    error_positive[35:] = 0.5
     occluded = np.zeros(N, dtype=bool)
     occluded[[3, 7, 12]] = True
     updated = np.zeros(N, dtype=bool)
-    updated[[5, 10, 15, 20]] = True
+    updated[[5, 10, 15, 20, 33]] = True
     diagnostics = {"error_positive": error_positive, "occluded": occluded, "updated_positive": updated}
     return TrackResult(boxes=boxes, states=np.zeros((N, 6)), diagnostics=diagnostics)
 
@@ -45,15 +47,34 @@ def sequence():
 
 def test_run_measures_by_hand(sequence):
     run = hand_made_run(sequence)
-    m = script.run_measures(run.boxes, run.diagnostics, sequence)
+    m = script.run_measures(run.boxes, run.diagnostics, sequence, 0.1)
     assert m["no_positive"] == pytest.approx(10 / 39)
     assert m["occluded"] == pytest.approx(3 / 39)
-    assert m["updates_per_100"] == pytest.approx(100 * 4 / 39)
+    assert m["updates_per_100"] == pytest.approx(100 * 5 / 39)
     # 19 ratios of 1 (frames 1-19), 10 of 0.5, 10 of 2: median 1; the last 4 frames (10% of 39): 2.
     assert m["scale_median"] == pytest.approx(1.0)
     assert m["scale_last"] == pytest.approx(2.0)
     assert m["lost_frame"] == 30 and m["lost_fraction"] == pytest.approx(30 / N) and m["held"] == m["lost_fraction"]
     assert m["overlap"] == pytest.approx((19 * 1.0 + 10 * 0.25) / 39)
+    # Updates before the loss at frame 30: 5, 10, 15 (IoU 1) and 20 (IoU 0.25); the one at 33 follows it.
+    assert m["contaminated"] == pytest.approx(1 / 4)
+    # Frames 30-39 at IoU 0: eps_pos* 0.05 < 0.1 on 30-34, 0.5 on 35-39; a laxer threshold takes all.
+    assert m["confident_off"] == pytest.approx(5 / 10)
+    lax = script.run_measures(run.boxes, run.diagnostics, sequence, 0.6)
+    assert lax["confident_off"] == pytest.approx(1.0) and lax["contaminated"] == m["contaminated"]
+
+
+def test_truth_at_interpolates_only_across_short_gaps():
+    truth = np.full((20, 4), np.nan)
+    truth[0] = [0, 0, 10, 10]
+    truth[5] = [10, 20, 20, 10]
+    truth[12] = [0, 0, 10, 10]  # a gap of 7 frames: not bridged
+    at = script.truth_at(truth, [0, 4, 5, 8, 12, 15])
+    np.testing.assert_allclose(at[0], [0, 0, 10, 10])
+    np.testing.assert_allclose(at[1], [8, 16, 18, 10])
+    np.testing.assert_allclose(at[2], truth[5])
+    assert np.isnan(at[3]).all() and np.isnan(at[5]).all()  # inside a long gap; after the last annotation
+    np.testing.assert_allclose(at[4], truth[12])
 
 
 def test_lock_needs_ten_consecutive_low_frames(sequence):
@@ -67,8 +88,10 @@ def test_lock_needs_ten_consecutive_low_frames(sequence):
     # Unannotated frames are skipped: consecutive annotated frames count, whatever their indices.
     assert script.lock_lost_at(overlaps, frames * 10) == 60
     run = hand_made_run(sequence, lose_at=None)
-    m = script.run_measures(run.boxes, run.diagnostics, sequence)
+    m = script.run_measures(run.boxes, run.diagnostics, sequence, 0.1)
     assert m["lost_frame"] is None and m["lost_fraction"] is None and m["held"] == 1.0
+    assert np.isnan(m["confident_off"])  # never off the target: nothing to measure
+    assert m["contaminated"] == pytest.approx(1 / 5)  # never lost: all five updates count, 33 on the target
 
 
 def test_collect_averages_over_seeds(sequence, tmp_path):
@@ -143,17 +166,22 @@ def test_fast_steps_count_centre_moves_beyond_three_sigma(noise):
 
 def test_shortfalls_name_the_mechanisms_past_their_thresholds():
     base = dict(config="default", no_positive=0.1, updates_per_100=10.0, occluded=0.2, scale_last=1.0,
-                fast_share=0.0, fast_max=2.0, lost_runs=0, lost_fraction=None, n_runs=5)
+                fast_share=0.0, fast_max=2.0, contaminated=0.1, confident_off=float("nan"), lost_runs=0,
+                lost_fraction=None, n_runs=5)
     rows = [dict(base, sequence="Deer", overlap=0.19, no_positive=0.84, fast_share=0.7, fast_max=9.0,
                  lost_runs=4, lost_fraction=0.27),
             dict(base, sequence="Occlusion2", overlap=0.39, scale_last=0.26),
             dict(base, sequence="Occlusion1", overlap=0.75),
+            dict(base, sequence="Caviar1", overlap=0.5, contaminated=0.3, confident_off=0.6, lost_runs=3,
+                 lost_fraction=0.3),
             dict(base, sequence="CarScale", overlap=0.73),           # above the paper's 0.70: not listed
             dict(base, sequence="Car4", overlap=0.2, config="paper"),  # only the default is judged
             dict(base, sequence="Dog", overlap=0.1)]                  # not one of the paper's sequences
     lines = script.shortfalls({"rows": rows})
-    assert [line.split(":")[0] for line in lines] == ["Deer", "Occlusion2", "Occlusion1"]
+    assert [line.split(":")[0] for line in lines] == ["Deer", "Occlusion2", "Occlusion1", "Caviar1"]
     assert "0.19 against 0.57" in lines[0] and "update starvation" in lines[0] and "motion beyond reach" in lines[0]
     assert "lock lost in 4 of 5 runs" in lines[0] and "scale drift" not in lines[0]
     assert "scale drift (the box 0.26" in lines[1] and "starvation" not in lines[1]
-    assert "lock never lost" in lines[2] and "none of the four measures" in lines[2]
+    assert "lock never lost" in lines[2] and "none of the six measures" in lines[2]
+    assert "template contamination (0.30" in lines[3] and "confident off the target" in lines[3]
+    assert "contamination" not in lines[0] and "confident off" not in lines[0]
