@@ -60,8 +60,11 @@ def test_run_measures_by_hand(sequence):
     assert m["contaminated"] == pytest.approx(1 / 4)
     # Frames 30-39 at IoU 0: eps_pos* 0.05 < 0.1 on 30-34, 0.5 on 35-39; a laxer threshold takes all.
     assert m["confident_off"] == pytest.approx(5 / 10)
+    # Held (IoU >= 0.5) before the loss: frames 1-19; eps_pos* >= 0.1 on 1-10.
+    assert m["gate_shut"] == pytest.approx(10 / 19)
     lax = script.run_measures(run.boxes, run.diagnostics, sequence, 0.6)
     assert lax["confident_off"] == pytest.approx(1.0) and lax["contaminated"] == m["contaminated"]
+    assert lax["gate_shut"] == pytest.approx(10 / 19)  # eps_pos* = 1 there: above any threshold
 
 
 def test_truth_at_interpolates_only_across_short_gaps():
@@ -92,6 +95,7 @@ def test_lock_needs_ten_consecutive_low_frames(sequence):
     assert m["lost_frame"] is None and m["lost_fraction"] is None and m["held"] == 1.0
     assert np.isnan(m["confident_off"])  # never off the target: nothing to measure
     assert m["contaminated"] == pytest.approx(1 / 5)  # never lost: all five updates count, 33 on the target
+    assert m["gate_shut"] == pytest.approx((10 + 5) / 29)  # held on 1-19 and 30-39; shut on 1-10 and 35-39
 
 
 def test_collect_averages_over_seeds(sequence, tmp_path):
@@ -166,22 +170,25 @@ def test_fast_steps_count_centre_moves_beyond_three_sigma(noise):
 
 def test_shortfalls_name_the_mechanisms_past_their_thresholds():
     base = dict(config="default", no_positive=0.1, updates_per_100=10.0, occluded=0.2, scale_last=1.0,
-                fast_share=0.0, fast_max=2.0, contaminated=0.1, confident_off=float("nan"), lost_runs=0,
+                fast_share=0.0, fast_max=2.0, contaminated=0.1, confident_off=float("nan"), gate_shut=0.1, lost_runs=0,
                 lost_fraction=None, n_runs=5)
     rows = [dict(base, sequence="Deer", overlap=0.19, no_positive=0.84, fast_share=0.7, fast_max=9.0,
                  lost_runs=4, lost_fraction=0.27),
             dict(base, sequence="Occlusion2", overlap=0.39, scale_last=0.26),
             dict(base, sequence="Occlusion1", overlap=0.75),
+            dict(base, sequence="David3", overlap=0.3, gate_shut=0.7, lost_runs=5, lost_fraction=0.46),
             dict(base, sequence="Caviar1", overlap=0.5, contaminated=0.3, confident_off=0.6, lost_runs=3,
                  lost_fraction=0.3),
             dict(base, sequence="CarScale", overlap=0.73),           # above the paper's 0.70: not listed
             dict(base, sequence="Car4", overlap=0.2, config="paper"),  # only the default is judged
             dict(base, sequence="Dog", overlap=0.1)]                  # not one of the paper's sequences
     lines = script.shortfalls({"rows": rows})
-    assert [line.split(":")[0] for line in lines] == ["Deer", "Occlusion2", "Occlusion1", "Caviar1"]
+    assert [line.split(":")[0] for line in lines] == ["Deer", "Occlusion2", "Occlusion1", "David3", "Caviar1"]
     assert "0.19 against 0.57" in lines[0] and "update starvation" in lines[0] and "motion beyond reach" in lines[0]
     assert "lock lost in 4 of 5 runs" in lines[0] and "scale drift" not in lines[0]
     assert "scale drift (the box 0.26" in lines[1] and "starvation" not in lines[1]
-    assert "lock never lost" in lines[2] and "none of the six measures" in lines[2]
-    assert "template contamination (0.30" in lines[3] and "confident off the target" in lines[3]
+    assert "lock never lost" in lines[2] and "none of the seven measures" in lines[2]
+    assert "the update gate shut on the target (eps_pos* at or above the threshold on 0.70" in lines[3]
+    assert "template contamination (0.30" in lines[4] and "confident off the target" in lines[4]
+    assert "gate shut" not in lines[4]
     assert "contamination" not in lines[0] and "confident off" not in lines[0]
