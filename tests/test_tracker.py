@@ -47,6 +47,18 @@ def test_paper_defaults():
     assert (p.update_interval, p.max_positive, p.update_error_threshold, p.patch_size) == (5, 100, 0.1, 32)
 
 
+def test_every_departure_of_the_default_from_the_paper_is_documented():
+    """A field in which TrackerParams() differs from TrackerParams.paper() has its entry in
+    docs/DEVIATIONS.md (by name, in backticks)."""
+    from pathlib import Path
+
+    deviations = (Path(__file__).resolve().parents[1] / "docs" / "DEVIATIONS.md").read_text()
+    default, paper = TrackerParams().as_dict(), TrackerParams.paper().as_dict()
+    differing = sorted(name for name in default if default[name] != paper[name])
+    assert {"update_interval", "update_error_threshold", "alpha"} <= set(differing)
+    assert [name for name in differing if f"`{name}`" not in deviations] == []
+
+
 def test_same_seed_same_boxes_and_different_seeds_differ(sequence, tracked):
     again = track_sequence(sequence, TrackerParams(**FAST), seed=0, n_frames=15)
     assert np.array_equal(again.boxes, tracked.boxes[:15])
