@@ -449,6 +449,19 @@ def findings(data: dict) -> list[str]:
     return lines
 
 
+#: The mechanisms named when their measure reaches its :data:`NAMED_WHEN` threshold: (key, text of a row).
+_THRESHOLD_MECHANISMS = (
+    ("fast_share", lambda r: f"motion beyond reach ({fmt(r['fast_share'], 2)} of the frame steps beyond "
+                             f"{FAST_SIGMAS:g} sigma, the largest {fmt(r['fast_max'], 0)} sigma)"),
+    ("contaminated", lambda r: f"template contamination ({fmt(r['contaminated'], 2)} of the positive updates "
+                               f"before the loss of lock made with the box at IoU < {CONTAMINATED_IOU:g})"),
+    ("confident_off", lambda r: f"confident off the target (eps_pos* below the update threshold on "
+                                f"{fmt(r['confident_off'], 2)} of the frames at IoU < {LOST_IOU:g})"),
+    ("gate_shut", lambda r: f"the update gate shut on the target (eps_pos* at or above the threshold on "
+                            f"{fmt(r['gate_shut'], 2)} of the frames held at IoU >= {ON_TARGET_IOU:g} before the loss)"),
+)
+
+
 def mechanisms(row: dict) -> list[str]:
     """The mechanisms whose measure passes :data:`NAMED_WHEN` in one (sequence, configuration) row."""
     named = []
@@ -460,18 +473,9 @@ def mechanisms(row: dict) -> list[str]:
     end = row["scale_last"]
     if math.isfinite(end) and not SCALE_OFF <= end <= 1 / SCALE_OFF:
         named.append(f"scale drift (the box {fmt(end, 2)} times the true size at the end)")
-    if math.isfinite(row["fast_share"]) and row["fast_share"] >= NAMED_WHEN["fast_share"]:
-        named.append(f"motion beyond reach ({fmt(row['fast_share'], 2)} of the frame steps beyond "
-                     f"{FAST_SIGMAS:g} sigma, the largest {fmt(row['fast_max'], 0)} sigma)")
-    if math.isfinite(row["contaminated"]) and row["contaminated"] >= NAMED_WHEN["contaminated"]:
-        named.append(f"template contamination ({fmt(row['contaminated'], 2)} of the positive updates before the "
-                     f"loss of lock made with the box at IoU < {CONTAMINATED_IOU:g})")
-    if math.isfinite(row["confident_off"]) and row["confident_off"] >= NAMED_WHEN["confident_off"]:
-        named.append(f"confident off the target (eps_pos* below the update threshold on "
-                     f"{fmt(row['confident_off'], 2)} of the frames at IoU < {LOST_IOU:g})")
-    if math.isfinite(row["gate_shut"]) and row["gate_shut"] >= NAMED_WHEN["gate_shut"]:
-        named.append(f"the update gate shut on the target (eps_pos* at or above the threshold on "
-                     f"{fmt(row['gate_shut'], 2)} of the frames held at IoU >= {ON_TARGET_IOU:g} before the loss)")
+    for key, text in _THRESHOLD_MECHANISMS:
+        if math.isfinite(row[key]) and row[key] >= NAMED_WHEN[key]:
+            named.append(text(row))
     return named
 
 
