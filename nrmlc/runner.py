@@ -170,7 +170,8 @@ def warm_up() -> None:
 
     A process's first tracking run would otherwise pay for loading the
     compiled kernels inside its timed ``init``/``update``. 7 frames: past the
-    first template update (every 5 frames), so its kernels load too.
+    first template update under any schedule up to the paper's 5 frames, so its
+    kernels load too.
     """
     from nrmlc.data import SyntheticSequence, SyntheticSpec
 
