@@ -243,18 +243,16 @@ def run_measures(boxes, diagnostics: dict, sequence, update_threshold: float) ->
     lost = lock_lost_at(evaluation.overlaps, frames)
     fraction = None if lost is None else lost / n
     overlaps = np.asarray(evaluation.overlaps, dtype=np.float64)
-    evaluated = frames >= 1  # frame 0 is the given box
-    # Diagnostics are indexed from frame 1 (row 0 dropped above).
-    off_here = overlaps[evaluated] < LOST_IOU
-    confident_here = error_positive[frames[evaluated] - 1] < update_threshold
-    held_here = (overlaps[evaluated] >= ON_TARGET_IOU) & (frames[evaluated] < (n if lost is None else lost))
+    # ``score`` skips frame 0, and the diagnostics above start at frame 1: frame f is row f - 1.
+    off_here = overlaps < LOST_IOU
+    confident_here = error_positive[frames - 1] < update_threshold
+    held_here = (overlaps >= ON_TARGET_IOU) & (frames < (n if lost is None else lost))
     update_frames = np.flatnonzero(updated) + 1
     if lost is not None:
         update_frames = update_frames[update_frames < lost]
     update_truth = truth_at(sequence.groundtruth, update_frames)
     known = np.isfinite(update_truth).all(axis=1)
-    update_overlaps = (overlaps_of(boxes[update_frames[known]], update_truth[known]) if known.any()
-                       else np.empty(0))
+    update_overlaps = overlaps_of(boxes[update_frames[known]], update_truth[known])
     return {"no_positive": float(np.mean(error_positive >= NO_POSITIVE)) if error_positive.size else math.nan,
             "occluded": float(np.mean(occluded)) if occluded.size else math.nan,
             "updates_per_100": 100.0 * float(updated.sum()) / steps,

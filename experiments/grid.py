@@ -25,6 +25,7 @@ from pathlib import Path
 
 from experiments.sequence_sets import DEVELOPMENT_SEQUENCES, PAPER_SEQUENCES
 from nrmlc.config import data_root_from_env
+from nrmlc.io import write_json
 from nrmlc.runner import DEFAULT_CACHE, RunCache, RunSpec, frames_tracked
 from nrmlc.tracker.params import TrackerParams
 
@@ -334,8 +335,6 @@ def json_report(stem: str):
     """``report`` of a script whose ``collect`` returns ``{"result", "section", ...}``: it writes
     ``result`` as ``<stem>.json`` and returns ``section``."""
     def report(context, data: dict) -> dict:
-        from nrmlc.io import write_json
-
         write_json(context.output(stem, ".json"), data["result"])
         return data["section"]
 

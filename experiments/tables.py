@@ -1,8 +1,8 @@
-"""Numbers into files: the one number formatter, mean ± std, strict JSON, CSV and PNG writers.
+"""Numbers into files: the one number formatter, mean ± std, CSV and PNG writers.
 
 Every experiment script formats its tables with :func:`fmt` and writes through
-:func:`write_csv` and
-:func:`save_figure`, all atomic (a killed run leaves the old file or the new one).
+:func:`write_csv`, :func:`save_figure` and :func:`nrmlc.io.write_json` (strict JSON), all
+atomic (a killed run leaves the old file or the new one).
 """
 from __future__ import annotations
 
