@@ -69,12 +69,86 @@ def test_dots_same_bits_whatever_the_thread_split(n_candidates):
         numba.set_num_threads(previous)
 
 
-def test_template_gram_symmetric_and_exact():
+@pytest.mark.parametrize("dtype, atol", [(np.float32, 1e-6), (np.float64, 1e-14)])
+def test_template_gram_symmetric_and_in_the_templates_precision(dtype, atol):
     _, templates = make_problem(2)
+    templates = templates.astype(dtype)
     gram = template_gram(templates)
     assert gram.dtype == np.float64 and gram.shape == (60, 60)
     np.testing.assert_array_equal(gram, gram.T)
-    np.testing.assert_allclose(gram, reference_dots(templates, templates), rtol=0, atol=1e-14)
+    np.testing.assert_allclose(gram, reference_dots(templates, templates), rtol=0, atol=atol)
+    if dtype == np.float32:
+        # Float32 products, as the candidate dots: worse than float64 can do.
+        assert np.abs(gram - reference_dots(templates, templates)).max() > 1e-12
+
+
+def _unit_rows(rng, n_rows, dim, dtype):
+    rows = rng.random((n_rows, dim))
+    return (rows / np.linalg.norm(rows, axis=1, keepdims=True)).astype(dtype)
+
+
+def _replace_rows(templates, rng, n_new):
+    """A template set with the last ``n_new`` rows and one earlier row replaced; the ``kept`` map."""
+    updated = templates.copy()
+    kept = np.arange(len(templates), dtype=np.int64)
+    changed = np.r_[rng.integers(0, len(templates) - n_new), np.arange(len(templates) - n_new, len(templates))]
+    updated[changed] = _unit_rows(rng, len(changed), templates.shape[1], templates.dtype)
+    kept[changed] = -1
+    return updated, kept
+
+
+@pytest.mark.parametrize("dtype, atol", [(np.float32, 1e-6), (np.float64, 1e-14)])
+def test_template_gram_carries_the_rows_that_stayed(dtype, atol):
+    rng = np.random.default_rng(4)
+    _, templates = make_problem(4)
+    templates = templates.astype(dtype)
+    previous = template_gram(templates)
+    updated, kept = _replace_rows(templates, rng, 25)
+    # One row appended as well: the tracker's positives grow until the cap.
+    updated = np.ascontiguousarray(np.vstack([updated, _unit_rows(rng, 1, templates.shape[1], dtype)]))
+    kept = np.append(kept, -1)
+    gram = template_gram(updated, previous, kept)
+    np.testing.assert_array_equal(gram, gram.T)
+    stayed = np.flatnonzero(kept >= 0)
+    np.testing.assert_array_equal(gram[np.ix_(stayed, stayed)], previous[np.ix_(stayed, stayed)])
+    np.testing.assert_allclose(gram, reference_dots(updated, updated), rtol=0, atol=atol)
+    # Rows may also move: a carried entry follows its template.
+    order = rng.permutation(len(templates))
+    moved = template_gram(np.ascontiguousarray(templates[order]), previous, order.astype(np.int64))
+    np.testing.assert_array_equal(moved, previous[np.ix_(order, order)])
+
+
+@pytest.mark.parametrize("dtype", [np.float32, np.float64])
+def test_template_gram_is_bit_identical_across_thread_counts(dtype):
+    rng = np.random.default_rng(5)
+    templates = _unit_rows(rng, 250, 1024, dtype)
+    updated, kept = _replace_rows(templates, rng, 150)
+    results = []
+    previous_threads = numba.get_num_threads()
+    try:
+        for n_threads in range(1, numba.config.NUMBA_NUM_THREADS + 1):
+            numba.set_num_threads(n_threads)
+            full = template_gram(templates)
+            results.append((full.tobytes(), template_gram(updated, full, kept).tobytes()))
+    finally:
+        numba.set_num_threads(previous_threads)
+    assert all(result == results[0] for result in results)
+
+
+def test_template_gram_refuses_a_bad_previous_gram():
+    _, templates = make_problem(6)
+    gram = template_gram(templates)
+    kept = np.arange(60, dtype=np.int64)
+    with pytest.raises(ParameterError, match="together"):
+        template_gram(templates, gram)
+    with pytest.raises(ParameterError, match="square"):
+        template_gram(templates, np.ascontiguousarray(gram[:, :10]), kept)
+    with pytest.raises(ParameterError, match="kept"):
+        template_gram(templates, gram, kept[:-1].copy())
+    with pytest.raises(ParameterError, match="kept must hold rows"):
+        template_gram(templates, gram[:30, :30].copy(), kept)
+    with pytest.raises(ParameterError, match="kept"):
+        template_gram(templates, gram, kept.astype(np.int32))
 
 
 @pytest.mark.parametrize("k", [1, 5, 10, 60])

@@ -231,6 +231,24 @@ def test_positive_set_is_capped_and_replaces_the_closest(sequence):
     assert np.any(np.all(tracker.positive_templates == new, axis=1))
 
 
+@pytest.mark.parametrize("max_positive, threshold", [(4, 4.0), (60, 4.0), (60, 0.0)])
+def test_carried_template_gram_is_the_gram_of_the_templates(sequence, max_positive, threshold):
+    """The Gram each update carries over (positives replaced at the cap, appended below it,
+    or unchanged) equals the Gram of the template set computed afresh, up to float32 rounding."""
+    from nrmlc.kernels.distance import template_gram
+
+    tracker = NRMLCTracker(seed=0, n_particles=50, n_positive=3, max_positive=max_positive,
+                           update_interval=1, update_error_threshold=threshold, occlusion_detection=False)
+    tracker.init(sequence.frame(0), sequence.init_box)
+    for index in range(1, 8):
+        tracker.update(sequence.frame(index))
+        gram = tracker.template_gram
+        np.testing.assert_array_equal(gram, gram.T)
+        np.testing.assert_allclose(gram, template_gram(tracker.templates), rtol=0, atol=2e-6)
+        np.testing.assert_array_equal(tracker.template_sq_norms, np.diag(gram))
+    assert len(tracker.positive_templates) == (4 if max_positive == 4 else 10 if threshold else 3)
+
+
 def test_occlusion_blocks_positive_updates(sequence):
     kwargs = dict(n_particles=50, update_interval=1, update_error_threshold=4.0)
     blocked = NRMLCTracker(seed=0, occlusion_max_negative=-1, **kwargs)  # every frame counts as occluded

@@ -85,6 +85,31 @@ def _one_blas_thread():
     return _controller.limit(limits=1, user_api="blas")
 
 
+def _run_in_threads(tasks: list) -> None:
+    """Run zero-argument ``tasks`` in up to ``numba.get_num_threads()`` threads, BLAS held to one.
+
+    The calling thread takes the first task. Which thread runs a task never changes
+    what it computes, so results do not depend on the thread count as long as the
+    tasks themselves do not (callers fix them).
+    """
+    n_threads = max(1, min(numba.get_num_threads(), len(tasks)))
+    with _one_blas_thread():
+        if n_threads == 1:
+            for task in tasks:
+                task()
+            return
+        pool = _thread_pool(n_threads - 1)
+        pending = [(pool.submit(task), task) for task in tasks[1:]]
+        tasks[0]()
+        for future, task in pending:
+            # A task no worker has started yet (its thread has not had a core: the machine
+            # is busy) is run here rather than waited for; same task, same result.
+            if future.cancel():
+                task()
+            else:
+                future.result()
+
+
 def _row_blocked_product(candidates: np.ndarray, templates: np.ndarray) -> np.ndarray:
     """``candidates @ templates.T`` in float64, its row blocks multiplied in ``numba.get_num_threads()`` threads.
 
@@ -92,36 +117,27 @@ def _row_blocked_product(candidates: np.ndarray, templates: np.ndarray) -> np.nd
     thread policy in :func:`nrmlc.config.set_threads`); numpy releases the GIL,
     so the blocks run in parallel and idle workers sleep. Each thread also casts
     its block of a float32 product to float64 (exact), so no serial pass over
-    the product remains. Each row is computed by the same single-threaded kernel
-    whatever the split, so the result does not depend on the thread count (a
-    test checks it bit for bit).
+    the product remains. ``sgemm`` computes each row the same way whatever the
+    number of rows in the call, so the result does not depend on the thread count
+    (a test checks the tracker's boxes bit for bit). ``dgemm`` does not promise
+    that (its kernels for short calls sum in another order: 1e-14 apart, measured),
+    but float64 candidates are only a testing aid.
     """
     n_rows = candidates.shape[0]
-    n_threads = max(1, min(numba.get_num_threads(), n_rows // _MIN_ROWS_PER_THREAD))
+    n_blocks = max(1, min(numba.get_num_threads(), n_rows // _MIN_ROWS_PER_THREAD))
     out = np.empty((n_rows, templates.shape[0]), dtype=np.float64)
     single = candidates.dtype == np.float32
     products = np.empty(out.shape, dtype=np.float32) if single else out
-    bounds = [n_rows * b // n_threads for b in range(n_threads + 1)]
+    bounds = [n_rows * b // n_blocks for b in range(n_blocks + 1)]
 
-    def block(start: int, stop: int) -> None:
-        np.matmul(candidates[start:stop], templates.T, out=products[start:stop])
-        if single:
-            out[start:stop] = products[start:stop]
+    def block(start: int, stop: int):
+        def task() -> None:
+            np.matmul(candidates[start:stop], templates.T, out=products[start:stop])
+            if single:
+                out[start:stop] = products[start:stop]
+        return task
 
-    with _one_blas_thread():
-        if n_threads == 1:
-            block(0, n_rows)
-            return out
-        pool = _thread_pool(n_threads - 1)
-        pending = [(pool.submit(block, start, stop), start, stop) for start, stop in zip(bounds[1:-1], bounds[2:])]
-        block(bounds[0], bounds[1])  # the calling thread takes the first block
-        for future, start, stop in pending:
-            # A block no worker has started yet (its thread has not had a core: the machine
-            # is busy) is computed here rather than waited for; same block, same result.
-            if future.cancel():
-                block(start, stop)
-            else:
-                future.result()
+    _run_in_threads([block(start, stop) for start, stop in zip(bounds[:-1], bounds[1:])])
     return out
 
 
@@ -196,29 +212,89 @@ def squared_norms(vectors: np.ndarray) -> np.ndarray:
     return out
 
 
-def template_gram(templates: np.ndarray) -> np.ndarray:
-    """Gram matrix of the template set, computed in float64.
+@njit(**NUMBA_FLAGS)
+def _assemble_gram(gram, previous, kept, fresh, stayed, among_new, against_stayed):
+    """Fill ``gram`` (n, n) from the carried block of ``previous`` and the new rows' products.
 
-    Called once per template update (not per frame), so it uses float64
-    arithmetic (``dgemm`` on a float64 copy) for an accurate local Gram.
+    ``among_new`` (n_fresh, n_fresh) holds ``new @ new.T`` (symmetric), ``against_stayed``
+    (n_fresh, n_stayed) ``new @ stayed.T``; both triangles get the same value.
+    """
+    for a in range(stayed.shape[0]):
+        for b in range(stayed.shape[0]):
+            gram[stayed[a], stayed[b]] = previous[kept[stayed[a]], kept[stayed[b]]]
+    for a in range(fresh.shape[0]):
+        for b in range(fresh.shape[0]):
+            gram[fresh[a], fresh[b]] = among_new[a, b]
+        for b in range(stayed.shape[0]):
+            value = np.float64(against_stayed[a, b])
+            gram[fresh[a], stayed[b]] = value
+            gram[stayed[b], fresh[a]] = value
+
+
+def template_gram(templates: np.ndarray, previous: np.ndarray | None = None,
+                  kept: np.ndarray | None = None) -> np.ndarray:
+    """Gram matrix of the template set, in the templates' precision, recomputing only new rows.
+
+    A template update replaces every negative and at most one positive, so the
+    block of the templates that stayed is carried over from the previous Gram and
+    only the new rows are multiplied: ``new @ new.T`` (a ``syrk``, half the work of
+    a product) and ``new @ stayed.T``, in two threads. Float32 templates are
+    multiplied in float32 (``ssyrk``/``sgemm``, then cast), as the candidate dots
+    are (:func:`candidate_template_dots`): every local Gram entry combines the two,
+    so a float64 Gram beside float32 dots would not make it more accurate, and it
+    cost twice the time. Pass float64 templates for a float64 Gram.
 
     Parameters
     ----------
     templates : ndarray, shape (n_templates, dim), float32 or float64
         Template patches as rows, C-contiguous.
+    previous : ndarray, shape (n_previous, n_previous), float64, optional
+        The Gram of the previous template set (this function's output for it).
+    kept : ndarray, shape (n_templates,), int64, optional
+        With ``previous``: ``kept[t]`` is the row of ``previous`` that holds template
+        ``t`` unchanged, or -1 for a new template.
 
     Returns
     -------
     gram : ndarray, shape (n_templates, n_templates), float64
-        ``gram[s, t] = templates[s] . templates[t]``, exactly symmetric.
+        ``gram[s, t] = templates[s] . templates[t]``, exactly symmetric. Entries
+        carried over equal those of ``previous``; an entry can differ from the
+        same entry of a whole new product by the rounding of the product
+        (~1e-7 in float32, ~1e-14 in float64, for unit-norm rows).
     """
     check_array("templates", templates, _FLOAT_DTYPES, 2)
-    as_double = templates.astype(np.float64, copy=False)
-    with _one_blas_thread():
-        gram = as_double @ as_double.T
-    # BLAS may round the two triangles differently; the coders rely on symmetry.
-    gram = np.triu(gram) + np.triu(gram, 1).T
-    return np.ascontiguousarray(gram)
+    n_templates = templates.shape[0]
+    if (previous is None) != (kept is None):
+        raise ParameterError("template_gram: pass previous and kept together, or neither")
+    if previous is None:
+        kept = np.full(n_templates, -1, dtype=np.int64)
+    else:
+        check_array("previous", previous, (np.dtype(np.float64),), 2)
+        if previous.shape[0] != previous.shape[1]:
+            raise ParameterError(f"previous must be a square Gram, got shape {previous.shape}")
+        check_array("kept", kept, (np.dtype(np.int64),), 1)
+        check_length("kept", kept, n_templates, f"templates has {n_templates} rows")
+        if kept.size and (kept.min() < -1 or kept.max() >= previous.shape[0]):
+            raise ParameterError(f"kept must hold rows of previous (0..{previous.shape[0] - 1}) or -1")
+    fresh = np.flatnonzero(kept < 0)
+    stayed = np.flatnonzero(kept >= 0)
+    new = np.ascontiguousarray(templates[fresh])
+    old = np.ascontiguousarray(templates[stayed])
+    products = {"new": np.empty((0, 0), dtype=templates.dtype), "stayed": np.empty((fresh.size, 0), dtype=templates.dtype)}
+
+    def among_new() -> None:
+        # numpy runs ``a @ a.T`` as a syrk, which writes both triangles equal.
+        products["new"] = new @ new.T
+
+    def against_stayed() -> None:
+        products["stayed"] = new @ old.T
+
+    if fresh.size:
+        _run_in_threads([among_new, against_stayed] if stayed.size else [among_new])
+    gram = np.empty((n_templates, n_templates), dtype=np.float64)
+    _assemble_gram(gram, previous if previous is not None else np.empty((0, 0)), kept, fresh, stayed,
+                   products["new"], products["stayed"])
+    return gram
 
 
 @njit(**NUMBA_FLAGS)

@@ -221,11 +221,18 @@ class NRMLCTracker:
             patches = centre_patches(patches)
         return patches
 
-    def _set_templates(self, positives: np.ndarray, negatives: np.ndarray) -> None:
+    def _set_templates(self, positives: np.ndarray, negatives: np.ndarray,
+                       kept_positives: np.ndarray | None = None) -> None:
+        """``kept_positives[i]``: the previous template row that positive ``i`` still is, or -1
+        (None: no Gram row is carried over)."""
         self.positive_templates = positives
         self.negative_templates = negatives
         self.templates = np.ascontiguousarray(np.vstack([positives, negatives]))
-        self.template_gram = template_gram(self.templates)
+        if kept_positives is None:
+            self.template_gram = template_gram(self.templates)
+        else:
+            kept = np.concatenate([kept_positives, np.full(len(negatives), -1, dtype=np.int64)])
+            self.template_gram = template_gram(self.templates, self.template_gram, kept)
         self.template_sq_norms = np.ascontiguousarray(np.diag(self.template_gram))
         if self.params.dictionaries == "per_class":
             n_pos = len(positives)
@@ -460,6 +467,7 @@ class NRMLCTracker:
         p = self.params
         negatives = self._sample_negatives(frame, self.state)
         positives = self.positive_templates
+        kept = np.arange(len(positives), dtype=np.int64)
         blocked = p.occlusion_detection and result.occluded
         if not blocked and result.error_positive < p.update_error_threshold:
             if p.estimate_count == 1:
@@ -468,11 +476,13 @@ class NRMLCTracker:
                 new = self._warp(frame, self.state[None, :])
             if len(positives) < p.max_positive:
                 positives = np.vstack([positives, new])
+                kept = np.append(kept, -1)
             else:
                 # The first frame's templates are the first n_positive rows.
                 first = p.n_positive if p.keep_initial_positives and p.max_positive > p.n_positive else 0
                 closest = first + int(np.argmin(((positives[first:] - new) ** 2).sum(axis=1)))
                 positives = positives.copy()
                 positives[closest] = new[0]
+                kept[closest] = -1
             result.updated_positive = True
-        self._set_templates(positives, negatives)
+        self._set_templates(positives, negatives, kept)
