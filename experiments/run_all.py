@@ -50,6 +50,7 @@ SCRIPTS = (
     "experiments.ablation_per_sequence_motion",
     "experiments.ablation_oracle_recentring",
     "experiments.failure_mechanisms",
+    "experiments.scale_likelihood",
 )
 
 #: Aggregate tracking speed of the default pool for the time estimate: measured on this
