@@ -76,3 +76,17 @@ def test_script_writes_its_outputs(tmp_path):
     assert [row["sequence"] for row in data["sequences"]] == [s.name for s in sequences]
     later = data["summary"]["later"]
     assert later["frames"] > 0 and sum(later["best_share"]) == pytest.approx(1.0)
+
+
+def test_summary_correlates_the_lean_with_the_drift():
+    def row(larger, smaller, scale):
+        later = {"frames": 30, "margin": [0.0] * len(SCALES), "best_share": [0.0] * len(SCALES),
+                 "smaller": smaller, "truth": 1 - larger - smaller, "larger": larger}
+        return {"early": {"frames": 0}, "later": later, "tracked_scale": scale}
+
+    leaning = scale_likelihood.summary([row(0.6, 0.1, 1.2), row(0.1, 0.7, 0.8), row(0.3, 0.3, 1.0)])
+    assert leaning["lean_and_drift"] == {"sequences": 3, "pearson_r": pytest.approx(1.0, abs=0.02)}
+    assert leaning["later"]["smaller_beats_truth"] == 1
+    against = scale_likelihood.summary([row(0.6, 0.1, 0.8), row(0.1, 0.7, 1.2), row(0.3, 0.3, 1.0)])
+    assert against["lean_and_drift"]["pearson_r"] == pytest.approx(-1.0, abs=0.02)
+    assert scale_likelihood.summary([row(0.6, 0.1, 1.2)])["lean_and_drift"]["pearson_r"] is None
