@@ -53,9 +53,10 @@ SCRIPTS = (
     "experiments.scale_likelihood",
 )
 
-#: Aggregate tracking speed of the default pool for the time estimate: measured on this
-#: 2-core machine, ~115 frames/s with 2 single-threaded workers at 600 particles.
-ESTIMATE_FPS_PER_WORKER = 57.0
+#: Tracking speed per worker for the time estimate: measured on this 2-core machine, the
+#: real-data grid of 2026-11-30 (code 4a599dc3d4876f9e) ran 591,893 600-particle frame
+#: equivalents in 50.8 min on 2 single-threaded workers, ~97 per worker.
+ESTIMATE_FPS_PER_WORKER = 95.0
 #: Rough speed of OpenCV's MIL (frames per second per worker).
 ESTIMATE_PEER_FPS = 15.0
 

@@ -41,8 +41,8 @@ SCALES = (0.7, 0.8, 0.9, 1.0, 1.1, 1.25, 1.4)
 EARLY_FRAMES = 30
 #: A frame counts while the tracker's own box has at least this IoU with the ground truth.
 ON_TARGET_IOU = 0.5
-#: Sequences with fewer later frames counted stay out of the correlation of :func:`summary`.
-MIN_LATER_FRAMES = 20
+#: Sequences with fewer frames counted in a period stay out of that period's correlation (:func:`summary`).
+MIN_PERIOD_FRAMES = 20
 #: Bump when the recorded content changes (invalidates the cached profiles).
 PROFILE_VERSION = 1
 
@@ -184,9 +184,10 @@ def collect(context) -> dict:
 def summary(rows: list[dict]) -> dict:
     """Per period: the frame-weighted mean margin curve and shares over every counted frame, and
     on how many sequences a smaller scale wins more often than the ground truth's; and whether
-    the boxes drift the way the likelihood leans: the Pearson r, across the sequences with at
-    least :data:`MIN_LATER_FRAMES` later frames, between the later share of larger minus smaller
-    scales winning and the log of the tracked scale."""
+    the boxes drift the way the likelihood leans: per period, the Pearson r, across the sequences
+    with at least :data:`MIN_PERIOD_FRAMES` frames counted in it, between the share of larger
+    minus smaller scales winning and the log of the tracked scale. The early lean comes from
+    templates that are still mostly the first frame's, so it is not a product of the drift."""
     out = {}
     for period in ("early", "later"):
         counted = [r[period] for r in rows if r[period]["frames"]]
@@ -199,11 +200,13 @@ def summary(rows: list[dict]) -> dict:
                        "best_share": mean("best_share").tolist(),
                        "sequences": len(counted),
                        "smaller_beats_truth": sum(c["smaller"] > c["truth"] for c in counted)}
-    leaning = [(r["later"]["larger"] - r["later"]["smaller"], np.log(r["tracked_scale"])) for r in rows
-               if r["later"]["frames"] >= MIN_LATER_FRAMES and r["tracked_scale"] is not None]
-    spread = len(leaning) >= 3 and np.ptp([x for x, _ in leaning]) > 0 and np.ptp([y for _, y in leaning]) > 0
-    out["lean_and_drift"] = {"sequences": len(leaning),
-                             "pearson_r": float(np.corrcoef(np.array(leaning).T)[0, 1]) if spread else None}
+    out["lean_and_drift"] = {}
+    for period in ("early", "later"):
+        leaning = [(r[period]["larger"] - r[period]["smaller"], np.log(r["tracked_scale"])) for r in rows
+                   if r[period]["frames"] >= MIN_PERIOD_FRAMES and r["tracked_scale"] is not None]
+        spread = len(leaning) >= 3 and all(np.ptp(values) > 0 for values in zip(*leaning))
+        out["lean_and_drift"][period] = {
+            "sequences": len(leaning), "pearson_r": float(np.corrcoef(np.array(leaning).T)[0, 1]) if spread else None}
     return out
 
 
@@ -272,12 +275,12 @@ def _markdown(result: dict) -> str:
                      f"{s['best_share'][unit]:.2f} of the frames, a smaller one on "
                      f"{sum(s['best_share'][:unit]):.2f}; a smaller scale wins more often than the ground truth's "
                      f"on {s['smaller_beats_truth']} of {s['sequences']} sequences.")
-    lean = summary_["lean_and_drift"]
-    if lean["pearson_r"] is not None:
-        lines.append(f"- Across the {lean['sequences']} sequences with at least {MIN_LATER_FRAMES} later frames, the "
-                     "later share of larger scales winning minus that of smaller ones and the log of the tracked "
-                     f"scale correlate with Pearson r = {lean['pearson_r']:.2f}: the boxes drift the way the "
-                     "likelihood leans.")
+    for period, lean in summary_["lean_and_drift"].items():
+        if lean["pearson_r"] is not None:
+            lines.append(f"- {period.capitalize()}: across the {lean['sequences']} sequences with at least "
+                         f"{MIN_PERIOD_FRAMES} frames counted, the share of larger scales winning minus that of "
+                         "smaller ones and the log of the tracked scale correlate with Pearson r = "
+                         f"{lean['pearson_r']:.2f}.")
     lines += ["", "Diagnostic only: no default is chosen on these runs."]
     return "\n".join(lines) + "\n"
 

@@ -85,8 +85,9 @@ def test_summary_correlates_the_lean_with_the_drift():
         return {"early": {"frames": 0}, "later": later, "tracked_scale": scale}
 
     leaning = scale_likelihood.summary([row(0.6, 0.1, 1.2), row(0.1, 0.7, 0.8), row(0.3, 0.3, 1.0)])
-    assert leaning["lean_and_drift"] == {"sequences": 3, "pearson_r": pytest.approx(1.0, abs=0.02)}
+    assert leaning["lean_and_drift"]["later"] == {"sequences": 3, "pearson_r": pytest.approx(1.0, abs=0.02)}
+    assert leaning["lean_and_drift"]["early"] == {"sequences": 0, "pearson_r": None}
     assert leaning["later"]["smaller_beats_truth"] == 1
     against = scale_likelihood.summary([row(0.6, 0.1, 0.8), row(0.1, 0.7, 1.2), row(0.3, 0.3, 1.0)])
-    assert against["lean_and_drift"]["pearson_r"] == pytest.approx(-1.0, abs=0.02)
-    assert scale_likelihood.summary([row(0.6, 0.1, 1.2)])["lean_and_drift"]["pearson_r"] is None
+    assert against["lean_and_drift"]["later"]["pearson_r"] == pytest.approx(-1.0, abs=0.02)
+    assert scale_likelihood.summary([row(0.6, 0.1, 1.2)])["lean_and_drift"]["later"]["pearson_r"] is None
