@@ -136,7 +136,8 @@ def profile_measures(profile: dict, groundtruth: np.ndarray) -> dict:
     -------
     dict
         Per period (``early``, ``later``): ``frames`` counted, ``margin`` (len(SCALES),) the
-        mean of m(s) - m(1), ``best_share`` (len(SCALES),) how often each scale has the
+        mean of m(s) - m(1), ``error_positive`` and ``error_negative`` (len(SCALES),) the means
+        of eps(s) - eps(1) of each term (m's change is the second minus the first), ``best_share`` (len(SCALES),) how often each scale has the
         largest margin, ``smaller``/``truth``/``larger`` those shares summed; and
         ``tracked_scale``, the median over the counted frames of sqrt(box area / truth area).
     """
@@ -156,7 +157,11 @@ def profile_measures(profile: dict, groundtruth: np.ndarray) -> dict:
             continue
         relative = margin[counted] - margin[counted, unit][:, None]
         share = np.bincount(np.argmax(margin[counted], axis=1), minlength=len(SCALES)) / n
+        terms = {name: (errors[counted] - errors[counted, unit][:, None]).mean(axis=0).tolist()
+                 for name, errors in (("positive", np.asarray(profile["error_positive"])),
+                                      ("negative", np.asarray(profile["error_negative"])))}
         out[period] = {"frames": n, "margin": relative.mean(axis=0).tolist(), "best_share": share.tolist(),
+                       "error_positive": terms["positive"], "error_negative": terms["negative"],
                        "smaller": float(share[:unit].sum()), "truth": float(share[unit]),
                        "larger": float(share[unit + 1:].sum())}
     counted = held
@@ -197,6 +202,8 @@ def summary(rows: list[dict]) -> dict:
         weights = np.array([c["frames"] for c in counted], dtype=np.float64)
         mean = lambda name: (np.array([c[name] for c in counted]).T @ weights / weights.sum())  # noqa: E731
         out[period] = {"frames": int(weights.sum()), "margin": mean("margin").tolist(),
+                       "error_positive": mean("error_positive").tolist(),
+                       "error_negative": mean("error_negative").tolist(),
                        "best_share": mean("best_share").tolist(),
                        "sequences": len(counted),
                        "smaller_beats_truth": sum(c["smaller"] > c["truth"] for c in counted)}
@@ -274,7 +281,9 @@ def _markdown(result: dict) -> str:
                      f"m(s) - m(1) {curve}; the ground truth's scale has the largest margin on "
                      f"{s['best_share'][unit]:.2f} of the frames, a smaller one on "
                      f"{sum(s['best_share'][:unit]):.2f}; a smaller scale wins more often than the ground truth's "
-                     f"on {s['smaller_beats_truth']} of {s['sequences']} sequences.")
+                     f"on {s['smaller_beats_truth']} of {s['sequences']} sequences. At 0.9 / 1.1 times the size, "
+                     f"eps_pos changes by {s['error_positive'][unit - 1]:+.3f} / {s['error_positive'][unit + 1]:+.3f} "
+                     f"and eps_neg by {s['error_negative'][unit - 1]:+.3f} / {s['error_negative'][unit + 1]:+.3f}.")
     for period, lean in summary_["lean_and_drift"].items():
         if lean["pearson_r"] is not None:
             lines.append(f"- {period.capitalize()}: across the {lean['sequences']} sequences with at least "

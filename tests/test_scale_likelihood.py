@@ -55,6 +55,8 @@ def test_profile_measures_count_shares_margins_and_periods():
     assert early["larger"] == 0.0
     assert early["margin"][UNIT] == 0.0
     assert early["margin"][UNIT - 1] == pytest.approx((0.3 + (0.0 - 0.2)) / 2)
+    # The hand-made profile puts the whole margin in eps_neg (eps_pos = 0).
+    assert early["error_negative"] == pytest.approx(early["margin"]) and early["error_positive"] == [0.0] * len(SCALES)
     assert out["tracked_scale"] == pytest.approx(1.2)
 
 
@@ -80,7 +82,8 @@ def test_script_writes_its_outputs(tmp_path):
 
 def test_summary_correlates_the_lean_with_the_drift():
     def row(larger, smaller, scale):
-        later = {"frames": 30, "margin": [0.0] * len(SCALES), "best_share": [0.0] * len(SCALES),
+        zeros = [0.0] * len(SCALES)
+        later = {"frames": 30, "margin": zeros, "error_positive": zeros, "error_negative": zeros, "best_share": zeros,
                  "smaller": smaller, "truth": 1 - larger - smaller, "larger": larger}
         return {"early": {"frames": 0}, "later": later, "tracked_scale": scale}
 
