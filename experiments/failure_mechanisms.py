@@ -26,10 +26,10 @@ Per run (frame 0, the given box, excluded throughout):
    (all of them when lock is never lost) whose box overlaps the ground truth by less than
    :data:`CONTAMINATED_IOU`: the template added is mostly not the target (an occluder or the
    background adopted) while the tracker still holds it, a cause of the loss rather than
-   its consequence. Updates fall on every fifth frame, and
-   keyframe annotations (Car11, Occlusion1/2) on others, so the ground truth is interpolated
-   linearly between annotated frames at most :data:`MAX_INTERPOLATION_GAP` apart
-   (:func:`truth_at`);
+   its consequence. Updates (every frame under the default, every fifth under the paper's
+   schedule) and keyframe annotations (Car11, Occlusion1/2) fall on different frames, so the
+   ground truth is interpolated linearly between annotated frames at most
+   :data:`MAX_INTERPOLATION_GAP` apart (:func:`truth_at`);
 7. **confident off the target**: share of the annotated frames with IoU < :data:`LOST_IOU`
    whose best candidate still has eps_pos* below the update threshold (a region that is
    not the target matches the positives as well as the target would: a distractor, or a

@@ -8,7 +8,8 @@ annotated frame and before that frame's update, the ground-truth box is coded at
 candidates are coded on. Per candidate the margin ``m = eps_neg - eps_pos`` is the log
 confidence over alpha (``log h = alpha m``), so ``m(s) - m(1)`` says by how much the
 likelihood prefers the box scaled by ``s`` to the true one (in units of 1/alpha of log
-weight). Frames are counted while the tracker holds the target (IoU >= 0.5), the first
+weight). Frames are counted while the tracker holds the target (IoU >= ``ON_TARGET_IOU`` of
+:mod:`experiments.failure_mechanisms`), the first
 :data:`EARLY_FRAMES` frames apart from the rest, because the positives are then still the
 first frame's. The probing never changes the tracker's boxes (tested).
 """
@@ -23,7 +24,7 @@ from typing import ClassVar
 import matplotlib.pyplot as plt
 import numpy as np
 
-from experiments.failure_mechanisms import blocks
+from experiments.failure_mechanisms import ON_TARGET_IOU, blocks
 from experiments.grid import json_report, script_main
 from experiments.internals import describe_params
 from experiments.tables import save_figure
@@ -39,8 +40,6 @@ report = json_report(STEM)
 SCALES = (0.7, 0.8, 0.9, 1.0, 1.1, 1.25, 1.4)
 #: Frames before this one count as early (the positives are still mostly the first frame's).
 EARLY_FRAMES = 30
-#: A frame counts while the tracker's own box has at least this IoU with the ground truth.
-ON_TARGET_IOU = 0.5
 #: Sequences with fewer frames counted in a period stay out of that period's correlation (:func:`summary`).
 MIN_PERIOD_FRAMES = 20
 #: Bump when the recorded content changes (invalidates the cached profiles).
@@ -80,11 +79,12 @@ class ScaleProfile:
         return description_key(self.description(version))
 
     def execute(self) -> dict:
-        from nrmlc.geometry import box_to_state
+        from nrmlc.geometry import box_to_state, usable_boxes
         from nrmlc.tracker.nrmlc_tracker import NRMLCTracker, as_gray_frame
 
         sequence, params = self.sequence, self.params
         groundtruth = sequence.groundtruth
+        usable = usable_boxes(groundtruth)
         tracker = NRMLCTracker(seed=self.seed, params=params)
         start = time.perf_counter()
         tracker.init(sequence.frame(0), sequence.init_box)
@@ -92,9 +92,8 @@ class ScaleProfile:
         frames, error_positive, error_negative = [], [], []
         for index in range(1, self.frames()):
             image = sequence.frame(index)
-            truth = groundtruth[index]
-            if np.all(np.isfinite(truth)) and truth[2] > 0 and truth[3] > 0:
-                states = np.repeat(box_to_state(truth[None, :], params.patch_size), len(SCALES), axis=0)
+            if usable[index]:
+                states = np.repeat(box_to_state(groundtruth[index][None, :], params.patch_size), len(SCALES), axis=0)
                 states[:, 2] *= np.asarray(SCALES)
                 # encode() reads the templates and draws nothing: the run's boxes are unchanged.
                 coded = tracker.encode(tracker._warp(tracker.prefilter(as_gray_frame(image)), states))
@@ -137,8 +136,9 @@ def profile_measures(profile: dict, groundtruth: np.ndarray) -> dict:
     dict
         Per period (``early``, ``later``): ``frames`` counted, ``margin`` (len(SCALES),) the
         mean of m(s) - m(1), ``error_positive`` and ``error_negative`` (len(SCALES),) the means
-        of eps(s) - eps(1) of each term (m's change is the second minus the first), ``best_share`` (len(SCALES),) how often each scale has the
-        largest margin, ``smaller``/``truth``/``larger`` those shares summed; and
+        of eps(s) - eps(1) of each term (m's change is the second minus the first),
+        ``best_share`` (len(SCALES),) how often each scale has the largest margin,
+        ``smaller``/``truth``/``larger`` those shares summed; and
         ``tracked_scale``, the median over the counted frames of sqrt(box area / truth area).
     """
     from nrmlc.metrics import overlaps
@@ -147,7 +147,7 @@ def profile_measures(profile: dict, groundtruth: np.ndarray) -> dict:
     margin = np.asarray(profile["error_negative"]) - np.asarray(profile["error_positive"])
     unit = SCALES.index(1.0)
     boxes, truth = np.asarray(profile["boxes"])[frames], np.asarray(groundtruth)[frames]
-    held = overlaps(boxes, truth) >= ON_TARGET_IOU if len(frames) else np.zeros(0, dtype=bool)
+    held = overlaps(boxes, truth) >= ON_TARGET_IOU
     out = {}
     for period, chosen in (("early", frames < EARLY_FRAMES), ("later", frames >= EARLY_FRAMES)):
         counted = held & chosen
@@ -192,7 +192,8 @@ def summary(rows: list[dict]) -> dict:
     the boxes drift the way the likelihood leans: per period, the Pearson r, across the sequences
     with at least :data:`MIN_PERIOD_FRAMES` frames counted in it, between the share of larger
     minus smaller scales winning and the log of the tracked scale. The early lean comes from
-    templates that are still mostly the first frame's, so it is not a product of the drift."""
+    templates that are still mostly the first frame's: it is there before the positives fill
+    with drifted results."""
     out = {}
     for period in ("early", "later"):
         counted = [r[period] for r in rows if r[period]["frames"]]
@@ -200,7 +201,10 @@ def summary(rows: list[dict]) -> dict:
             out[period] = {"frames": 0}
             continue
         weights = np.array([c["frames"] for c in counted], dtype=np.float64)
-        mean = lambda name: (np.array([c[name] for c in counted]).T @ weights / weights.sum())  # noqa: E731
+
+        def mean(name: str) -> np.ndarray:
+            return np.array([c[name] for c in counted]).T @ weights / weights.sum()
+
         out[period] = {"frames": int(weights.sum()), "margin": mean("margin").tolist(),
                        "error_positive": mean("error_positive").tolist(),
                        "error_negative": mean("error_negative").tolist(),
