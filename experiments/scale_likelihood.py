@@ -96,7 +96,7 @@ class ScaleProfile:
                 states = np.repeat(box_to_state(groundtruth[index][None, :], params.patch_size), len(SCALES), axis=0)
                 states[:, 2] *= np.asarray(SCALES)
                 # encode() reads the templates and draws nothing: the run's boxes are unchanged.
-                coded = tracker.encode(tracker._warp(tracker.prefilter(as_gray_frame(image)), states))
+                coded = tracker.encode(tracker.patches(tracker.prefilter(as_gray_frame(image)), states))
                 frames.append(index)
                 error_positive.append(coded["error_positive"])
                 error_negative.append(coded["error_negative"])

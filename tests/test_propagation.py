@@ -205,6 +205,11 @@ def test_presets():
     (dict(antialias=-0.1), "antialias"),
     (dict(negative_push=3.0), "negative_push"),
     (dict(keep_initial_positives="yes"), "keep_initial_positives"),
+    (dict(redetect_count=-1), "redetect_count"),
+    (dict(redetect_count=2.5), "redetect_count"),
+    (dict(redetect_factor=0.5), "redetect_factor"),
+    (dict(redetect_accept=0.0), "redetect_accept"),
+    (dict(redetect_accept=float("nan")), "redetect_accept"),
 ])
 def test_exhausting_or_unknown_parameters_are_refused_by_name(changes, name):
     with pytest.raises(ParameterError, match=f"parameter {name}"):

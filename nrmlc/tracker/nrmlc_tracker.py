@@ -15,7 +15,10 @@ Per frame:
    (:mod:`nrmlc.kernels.coding`);
 5. score each candidate with log h = -alpha (eps_pos - eps_neg) (in the log domain, so
    no alpha overflows); the estimate is the most confident candidate, or the
-   confidence-weighted mean of the ``estimate_count`` most confident;
+   confidence-weighted mean of the ``estimate_count`` most confident. If the best
+   candidate's code uses no positive template, first re-detect (*ours*, ``redetect_count``):
+   code a wider search around the previous estimate, whose candidates count only where
+   eps_pos < ``redetect_accept``;
 6. every ``update_interval`` frames, resample the negative templates around the
    estimate and, unless the target is judged occluded (LEN(neg*) too large),
    add the result to the positive templates when eps_pos* < threshold.
@@ -44,6 +47,9 @@ MIN_BOX_SIZE = 4.0
 MIN_BLUR_SIGMA = 0.05
 #: OpenCV reads a sigma of 0 as "derive it from the kernel size": the other axis's floor.
 BLUR_SIGMA_FLOOR = 1e-3
+#: eps_pos* at or above which a frame runs the re-detection search (``redetect_count``): 1 up
+#: to rounding, i.e. the best candidate's code puts no weight on a positive template.
+REDETECT_TRIGGER = 0.99
 
 
 def as_gray_frame(image: np.ndarray) -> np.ndarray:
@@ -152,6 +158,9 @@ class FrameResult:
         Share of negative entries among all candidates' c (within each k_j) and w.
     updated_positive : bool
         Whether this frame's result was added to the positive templates.
+    redetect_searched, redetected : bool
+        Whether this frame ran the re-detection search (``redetect_count``), and whether
+        its estimate came from it.
     """
 
     state: np.ndarray
@@ -173,6 +182,8 @@ class FrameResult:
     negative_share_c: float
     negative_share_w: float
     updated_positive: bool = False
+    redetect_searched: bool = False
+    redetected: bool = False
 
 
 def _exp_or_inf(value: float) -> float:
@@ -215,7 +226,10 @@ class NRMLCTracker:
         self.last_candidates: dict | None = None
 
     # -- templates -------------------------------------------------------
-    def _warp(self, frame: np.ndarray, states: np.ndarray) -> np.ndarray:
+    def patches(self, frame: np.ndarray, states: np.ndarray) -> np.ndarray:
+        """The patch vectors the tracker codes for ``states`` (n, 6) in ``frame`` (a frame
+        as ``update`` sees it after :meth:`prefilter`): (n, patch_size**2) float32, unit rows
+        (mean-free first under ``patch_normalization='centred'``)."""
         patches = warp_patches(frame, np.ascontiguousarray(state_to_affine(states)), self.params.patch_size)
         if self.params.patch_normalization == "centred":
             patches = centre_patches(patches)
@@ -245,7 +259,7 @@ class NRMLCTracker:
             states = scm_positive_states(self.rng, state, p.n_positive, p.positive_sigma)
         else:
             states = positive_states(self.rng, state, p.n_positive, p.positive_radius)
-        return self._warp(frame, states)
+        return self.patches(frame, states)
 
     def _sample_negatives(self, frame: np.ndarray, state: np.ndarray, first: bool = False) -> np.ndarray:
         p = self.params
@@ -255,7 +269,7 @@ class NRMLCTracker:
             states = scm_negative_states(self.rng, state, p.n_negative, p.patch_size, push)
         else:
             states = negative_states(self.rng, state, p.n_negative, p.positive_radius, p.negative_radius)
-        return self._warp(frame, states)
+        return self.patches(frame, states)
 
     # -- public interface -----------------------------------------------
     def init(self, image, box) -> None:
@@ -344,19 +358,25 @@ class NRMLCTracker:
             cumulative = np.cumsum(weights)
             # Multinomial resampling, as estwarp_condens.m; searchsorted keeps it O(n log n).
             picks = np.searchsorted(cumulative, self.rng.random(n) * cumulative[-1], side="right")
-            states = self.particles[np.minimum(picks, n - 1)]
+            states = self.particles[np.minimum(picks, len(self.particles) - 1)]
         else:
             states = np.tile(self.state, (n, 1))
         if p.velocity_damping:
             # The motion model's mean mu (eq. 1): the last frame's displacement, damped.
             states[:, 0:2] += p.velocity_damping * self.velocity
+        return self._diffuse(states, int(round(p.wide_share * n)), p.wide_factor)
+
+    def _diffuse(self, states: np.ndarray, n_wide: int, wide_factor: float) -> np.ndarray:
+        """Add the motion model's noise to ``states`` (n, 6) in place, with the translation
+        noise of the last ``n_wide`` rows ``wide_factor`` times larger; clamp them."""
+        p = self.params
+        n = len(states)
         noise = self.rng.standard_normal((n, 6)) * np.asarray(p.motion_sigmas)
         if p.translation_noise == "relative":
             size = states[:, 2] * np.sqrt(0.5 * (1.0 + states[:, 4] ** 2))
             noise[:, 0:2] *= size[:, None]
-        n_wide = int(round(p.wide_share * n))
         if n_wide:
-            noise[n - n_wide:, 0:2] *= p.wide_factor
+            noise[n - n_wide:, 0:2] *= wide_factor
         states[:, 0:2] += noise[:, 0:2]
         states[:, 2] *= np.exp(noise[:, 2])
         states[:, 3] += noise[:, 3]
@@ -412,8 +432,13 @@ class NRMLCTracker:
         """Estimate the target in ``frame`` (no template update)."""
         p = self.params
         states = self.sample_particles()
-        candidates = self._warp(frame, states)
+        candidates = self.patches(frame, states)
         coded = self.encode(candidates)
+        n_local = len(states)
+        searched = (p.redetect_count > 0
+                    and coded["error_positive"][np.argmax(coded["log_confidence"])] >= REDETECT_TRIGGER)
+        if searched:
+            states, candidates, coded = self._redetect(frame, states, candidates, coded)
         log_confidence = coded["log_confidence"]
         best = int(np.argmax(log_confidence))
         self.particles = states
@@ -439,10 +464,25 @@ class NRMLCTracker:
             code_sum_positive=float(codes[~negative].sum()), code_sum_negative=float(codes[negative].sum()),
             negative_share_c=float(np.mean(coefficient_values < 0)),
             negative_share_w=float(np.mean(coded["weights"] < 0)),
+            redetect_searched=bool(searched), redetected=best >= n_local,
         )
         self.last = result
         self.last_candidates = dict(coded, states=states, patches=candidates, best=best)
         return result
+
+    def _redetect(self, frame: np.ndarray, states: np.ndarray, candidates: np.ndarray, coded: dict) -> tuple:
+        """This frame's particles, patches and codes with the re-detection search's appended
+        (``redetect_count`` candidates around the previous estimate, ``redetect_factor`` times
+        the translation noise). A re-detection candidate whose eps_pos is not below
+        ``redetect_accept`` gets log h = -inf: it can be neither the estimate nor resampled."""
+        p = self.params
+        extra = self._diffuse(np.tile(self.state, (p.redetect_count, 1)), p.redetect_count, p.redetect_factor)
+        extra_candidates = self.patches(frame, extra)
+        extra_coded = self.encode(extra_candidates)
+        extra_coded["log_confidence"] = np.where(extra_coded["error_positive"] < p.redetect_accept,
+                                                 extra_coded["log_confidence"], -np.inf)
+        merged = {name: np.concatenate([coded[name], extra_coded[name]]) for name in coded}
+        return np.vstack([states, extra]), np.vstack([candidates, extra_candidates]), merged
 
     def _estimate(self, states: np.ndarray, log_confidence: np.ndarray, best: int) -> np.ndarray:
         """(6,) estimate: the most confident particle, or the confidence-weighted mean of
@@ -473,7 +513,7 @@ class NRMLCTracker:
             if p.estimate_count == 1:
                 new = self.last_candidates["patches"][self.last_candidates["best"]][None, :]
             else:
-                new = self._warp(frame, self.state[None, :])
+                new = self.patches(frame, self.state[None, :])
             if len(positives) < p.max_positive:
                 positives = np.vstack([positives, new])
                 kept = np.append(kept, -1)

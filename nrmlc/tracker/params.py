@@ -152,6 +152,18 @@ class TrackerParams:
         later, never one of the first frame's ``n_positive`` (*ours*; False = the paper:
         the closest of all). The first frame's templates are the only ones known to be
         the target, so drifted results cannot push them out.
+    redetect_count : int
+        Re-detection (*ours*; 0 = off, the paper). On a frame whose best candidate's code
+        puts no weight on a positive template (eps_pos* = 1: the target looks like nothing
+        the positives hold), this many more candidates are drawn around the previous
+        estimate with ``redetect_factor`` times the translation noise and coded on the same
+        templates. They join the particles the next frame resamples.
+    redetect_factor : float
+        The re-detection candidates' translation noise, in multiples of the motion model's.
+    redetect_accept : float
+        A re-detection candidate can become the estimate (and carry weight) only if its
+        eps_pos < this: a wide search would otherwise jump to whatever the negatives rank
+        well, such as another player or the other jogger.
     """
 
     n_particles: int = 600
@@ -187,6 +199,9 @@ class TrackerParams:
     velocity_damping: float = 0.0
     antialias: float = 0.0
     keep_initial_positives: bool = False
+    redetect_count: int = 300
+    redetect_factor: float = 4.0
+    redetect_accept: float = 0.3
 
     def __post_init__(self) -> None:
         def fail(name: str, message: str) -> None:
@@ -196,13 +211,13 @@ class TrackerParams:
         object.__setattr__(self, "motion_sigmas", tuple(float(v) for v in self.motion_sigmas))
         object.__setattr__(self, "dictionary_sizes", tuple(int(v) for v in self.dictionary_sizes))
         for name in ("n_particles", "n_positive", "n_negative", "n_iterations", "update_interval",
-                     "max_positive", "occlusion_max_negative", "patch_size", "estimate_count"):
+                     "max_positive", "occlusion_max_negative", "patch_size", "estimate_count", "redetect_count"):
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, int):
                 fail(name, f"must be an integer, got {value!r}")
         for name in ("positive_radius", "negative_radius", "lam", "beta", "alpha", "update_error_threshold",
                      "coefficient_tolerance", "positive_sigma", "negative_push", "wide_share", "wide_factor",
-                     "velocity_damping", "antialias"):
+                     "velocity_damping", "antialias", "redetect_factor", "redetect_accept"):
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
                 fail(name, f"must be a finite number, got {value!r}")
@@ -244,6 +259,12 @@ class TrackerParams:
             fail("wide_share", f"must be in [0, 1], got {self.wide_share}")
         if not 1 <= self.wide_factor <= 100:
             fail("wide_factor", f"must be in [1, 100], got {self.wide_factor}")
+        if not 0 <= self.redetect_count <= MAX_PARTICLES:
+            fail("redetect_count", f"must be in 0..{MAX_PARTICLES}, got {self.redetect_count}")
+        if not 1 <= self.redetect_factor <= 100:
+            fail("redetect_factor", f"must be in [1, 100], got {self.redetect_factor}")
+        if not 0 < self.redetect_accept <= 1:
+            fail("redetect_accept", f"must be in (0, 1], got {self.redetect_accept}")
         if not 1 <= self.estimate_count <= self.n_particles:
             fail("estimate_count", f"must be in 1..n_particles ({self.n_particles}), got {self.estimate_count}")
         if not 0 <= self.velocity_damping <= 1:
@@ -320,7 +341,7 @@ PRESETS: dict[str, dict] = {
     "paper": dict(template_sampling="annulus", propagation="condensation", alpha=2.5,
                   patch_normalization="unit", dictionaries="joint", wide_share=0.0,
                   estimate_count=1, keep_initial_positives=False, velocity_damping=0.0,
-                  antialias=0.0, update_interval=5, update_error_threshold=0.1),
+                  antialias=0.0, update_interval=5, update_error_threshold=0.1, redetect_count=0),
 }
 
 

@@ -1,0 +1,103 @@
+"""Re-detection (``redetect_count``): when it runs, which of its candidates count, and that it
+recovers a jump the motion model cannot follow; bit-identical across thread counts."""
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from nrmlc import NRMLCTracker, TrackerParams
+from nrmlc.metrics import overlaps
+from nrmlc.testing.scenes import jump_scene
+from nrmlc.tracker.nrmlc_tracker import REDETECT_TRIGGER
+
+REPO_ROOT = Path(__file__).resolve().parent.parent
+JUMP_FRAME = 4
+
+
+def _track(seed: int, **changes) -> tuple[np.ndarray, list[NRMLCTracker]]:
+    """IoU per frame of the jump scene, and a copy of the tracker's per-frame results."""
+    frames, truth = jump_scene(jump_frame=JUMP_FRAME)
+    tracker = NRMLCTracker(seed=seed, **changes)
+    tracker.init(frames[0], truth[0])
+    boxes, results = [truth[0]], [None]
+    for frame in frames[1:]:
+        boxes.append(tracker.update(frame))
+        results.append(tracker.last)
+    return overlaps(np.array(boxes), truth), results
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_redetection_recovers_a_jump_the_motion_model_cannot_follow(seed):
+    with_search, results = _track(seed)
+    without, plain_results = _track(seed, redetect_count=0)
+    # Without it the cloud is still crawling towards the target a frame after the jump.
+    assert without[JUMP_FRAME:JUMP_FRAME + 2].max() < 0.55
+    assert not any(r.redetect_searched for r in plain_results[1:])
+    # With it the target is found again at once, and kept.
+    assert with_search[JUMP_FRAME + 1:].min() > 0.85
+    redetected = [i for i, r in enumerate(results) if r is not None and r.redetected]
+    assert redetected and redetected[0] in (JUMP_FRAME, JUMP_FRAME + 1)
+    # Before the jump the positives hold the target: no search (test below: what triggers it).
+    assert not any(r.redetect_searched for r in results[1:JUMP_FRAME])
+
+
+def test_only_confident_redetection_candidates_carry_weight():
+    frames, truth = jump_scene(jump_frame=JUMP_FRAME)
+    params = TrackerParams(n_particles=200, redetect_count=150, redetect_accept=0.3)
+    tracker = NRMLCTracker(seed=1, params=params)
+    tracker.init(frames[0], truth[0])
+    for frame in frames[1:JUMP_FRAME + 1]:
+        tracker.update(frame)
+    assert tracker.last.redetect_searched
+    coded = tracker.last_candidates
+    assert len(coded["states"]) == len(tracker.particles) == 350
+    # The frame's own particles: their best has no positive in its code, so it triggered.
+    local = coded["log_confidence"][:200]
+    assert coded["error_positive"][int(np.argmax(local))] >= REDETECT_TRIGGER
+    extra_error = coded["error_positive"][200:]
+    extra_log = coded["log_confidence"][200:]
+    assert np.all(np.isneginf(extra_log[extra_error >= 0.3]))
+    assert np.all(np.isfinite(extra_log[extra_error < 0.3]))
+    # The next frame resamples n_particles from all 350 (the -inf ones get no weight).
+    assert tracker.sample_particles().shape == (200, 6)
+
+
+def test_paper_preset_has_no_redetection():
+    assert TrackerParams.paper().redetect_count == 0
+    assert TrackerParams().redetect_count > 0
+
+
+_CHILD = r"""
+import sys
+from nrmlc.config import set_threads
+n_threads = set_threads(int(sys.argv[1]))
+import numpy as np
+from nrmlc import NRMLCTracker
+from nrmlc.testing.scenes import jump_scene
+frames, truth = jump_scene()
+tracker = NRMLCTracker(seed=2)
+tracker.init(frames[0], truth[0])
+boxes, searched = [], 0
+for frame in frames[1:]:
+    boxes.append(tracker.update(frame))
+    searched += tracker.last.redetect_searched
+print(n_threads, searched, np.array(boxes).tobytes().hex())
+"""
+
+
+def test_redetection_is_bit_identical_with_one_or_two_threads():
+    outputs = []
+    for n_threads in (1, 2):
+        env = dict(os.environ, NUMBA_NUM_THREADS=str(n_threads), OPENBLAS_NUM_THREADS=str(n_threads),
+                   OMP_NUM_THREADS=str(n_threads))
+        run = subprocess.run([sys.executable, "-c", _CHILD, str(n_threads)], env=env, cwd=str(REPO_ROOT),
+                             capture_output=True, text=True, check=True, timeout=600)
+        outputs.append(run.stdout.split())
+    assert [o[0] for o in outputs] == ["1", "2"]
+    assert int(outputs[0][1]) > 0  # the search ran
+    assert outputs[0][2] == outputs[1][2]
