@@ -19,8 +19,8 @@ REPO_ROOT = Path(__file__).resolve().parent.parent
 JUMP_FRAME = 4
 
 
-def _track(seed: int, **changes) -> tuple[np.ndarray, list[NRMLCTracker]]:
-    """IoU per frame of the jump scene, and a copy of the tracker's per-frame results."""
+def _track(seed: int, **changes) -> tuple[np.ndarray, list]:
+    """IoU per frame of the jump scene, and the tracker's FrameResult per frame (None for frame 0)."""
     frames, truth = jump_scene(jump_frame=JUMP_FRAME)
     tracker = NRMLCTracker(seed=seed, **changes)
     tracker.init(frames[0], truth[0])
@@ -63,7 +63,9 @@ def test_only_confident_redetection_candidates_carry_weight():
     extra_log = coded["log_confidence"][200:]
     assert np.all(np.isneginf(extra_log[extra_error >= 0.3]))
     assert np.all(np.isfinite(extra_log[extra_error < 0.3]))
-    # The next frame resamples n_particles from all 350 (the -inf ones get no weight).
+    # The next frame resamples n_particles from all 350; the refused ones have no weight.
+    weights = np.exp(tracker.log_weights - tracker.log_weights.max())
+    assert np.all(weights[200:][extra_error >= 0.3] == 0) and weights[:200].sum() > 0
     assert tracker.sample_particles().shape == (200, 6)
 
 
