@@ -164,8 +164,7 @@ def profile_measures(profile: dict, groundtruth: np.ndarray) -> dict:
                        "error_positive": terms["positive"], "error_negative": terms["negative"],
                        "smaller": float(share[:unit].sum()), "truth": float(share[unit]),
                        "larger": float(share[unit + 1:].sum())}
-    counted = held
-    ratio = np.sqrt(boxes[counted, 2] * boxes[counted, 3] / (truth[counted, 2] * truth[counted, 3]))
+    ratio = np.sqrt(boxes[held, 2] * boxes[held, 3] / (truth[held, 2] * truth[held, 3]))
     out["tracked_scale"] = float(np.median(ratio)) if ratio.size else None
     return out
 
