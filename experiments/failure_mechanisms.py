@@ -39,7 +39,11 @@ Per run (frame 0, the given box, excluded throughout):
    above the update threshold, i.e. on which the tracker holds the target and the paper's rule
    still refuses to add it: the appearance has moved away from the positives, which then stay
    stale (designed after reading David3's per-frame trace, seeds 0 and 1);
-9. mean overlap (as in Table II), for context.
+9. **re-detection**: share of frames on which the re-detection search ran (its trigger,
+   ``nrmlc.tracker.nrmlc_tracker.REDETECT_TRIGGER``, fired), and the same share among the
+   annotated frames with IoU < :data:`LOST_IOU`: whether the search runs where the box is
+   off the target (0 for a configuration without re-detection);
+10. mean overlap (as in Table II), for context.
 
 For each of the paper's sequences where the default falls short of Table II (by more than
 :data:`SHORT_BY`), the report names the mechanisms whose measure passes a fixed threshold
@@ -115,7 +119,8 @@ MEASURES = (("no_positive", "no positive among nearest", 3), ("occluded", "occlu
             ("scale_last", "scale ratio, last 10%", 2), ("held", "share held before loss of lock", 2),
             ("fast_share", "steps beyond reach", 3), ("contaminated", "updates off the target", 3),
             ("confident_off", "confident while off the target", 3),
-            ("gate_shut", "update refused while on the target", 3), ("overlap", "mean overlap", 3))
+            ("gate_shut", "update refused while on the target", 3), ("searched", "re-detection searched", 3),
+            ("searched_off", "searched while off the target", 3), ("overlap", "mean overlap", 3))
 #: The measures of a (sequence, configuration), not of a run (:func:`fast_steps`): no per-seed value.
 SEQUENCE_MEASURES = ("fast_share",)
 
@@ -224,7 +229,8 @@ def run_measures(boxes, diagnostics: dict, sequence, update_threshold: float) ->
         ``no_positive``, ``occluded``, ``updates_per_100``, ``scale_median``,
         ``scale_last``, ``lost_frame`` (None if lock is never lost), ``lost_fraction``,
         ``held`` (``lost_fraction``, or 1 if never lost), ``contaminated``, ``confident_off``,
-        ``gate_shut`` (NaN without an update / a frame off the target / a frame on it),
+        ``gate_shut``, ``searched``, ``searched_off`` (NaN without an update / a frame off the
+        target / a frame on it / a frame / a frame off the target),
         ``overlap``, ``n_frames``.
     """
     boxes = np.asarray(boxes, dtype=np.float64)
@@ -233,6 +239,7 @@ def run_measures(boxes, diagnostics: dict, sequence, update_threshold: float) ->
     error_positive = np.asarray(diagnostics["error_positive"], dtype=np.float64)[1:n]
     occluded = np.asarray(diagnostics["occluded"], dtype=bool)[1:n]
     updated = np.asarray(diagnostics["updated_positive"], dtype=bool)[1:n]
+    searched = np.asarray(diagnostics["redetect_searched"], dtype=bool)[1:n]
     evaluation = score(boxes, sequence)
     frames = np.asarray(evaluation.frames)
     truth = np.asarray(sequence.groundtruth, dtype=np.float64)[frames]
@@ -263,6 +270,8 @@ def run_measures(boxes, diagnostics: dict, sequence, update_threshold: float) ->
                              if update_overlaps.size else math.nan),
             "confident_off": float(np.mean(confident_here[off_here])) if off_here.any() else math.nan,
             "gate_shut": float(np.mean(~confident_here[held_here])) if held_here.any() else math.nan,
+            "searched": float(np.mean(searched)) if searched.size else math.nan,
+            "searched_off": float(np.mean(searched[frames - 1][off_here])) if off_here.any() else math.nan,
             "overlap": evaluation.mean_overlap, "n_frames": n}
 
 
@@ -533,16 +542,18 @@ def report(context, data: dict) -> dict:
         f"{CONTAMINATED_IOU:g}. "
         f"*Conf. off*: share of the frames at IoU < {LOST_IOU:g} with eps_pos* below the update threshold. "
         f"*Gate shut*: share of the frames before the loss at IoU >= {ON_TARGET_IOU:g} with eps_pos* at or above it. "
+        f"*Re-det.*: share of the frames on which the re-detection search ran; *off*: the same among the frames at "
+        f"IoU < {LOST_IOU:g}. "
         "Diagnostic only: no default is chosen on these runs.", "",
         "| sequence | no pos. | occl. | upd./100 | scale, median | scale, last 10% | lock lost | fast | contam. "
-        "| conf. off | gate shut | overlap |",
-        "|---" * 12 + "|"]
+        "| conf. off | gate shut | re-det. | re-det. off | overlap |",
+        "|---" * 14 + "|"]
 
     def cells(row_of, key, digits):
         return " / ".join(fmt(row_of(c["name"])[key], digits) for c in configs)
 
     for label, names in data["blocks"]:
-        text.append(f"| *{label}* |" + " |" * 11)
+        text.append(f"| *{label}* |" + " |" * 13)
         for name in names:
             row_of = functools.partial(_row, data, name)
             text.append(f"| {name} | " + " | ".join(
@@ -550,13 +561,14 @@ def report(context, data: dict) -> dict:
                  cells(row_of, "scale_median", 2), cells(row_of, "scale_last", 2),
                  " / ".join(_lost_text(row_of(c["name"])) for c in configs), cells(row_of, "fast_share", 2),
                  cells(row_of, "contaminated", 2), cells(row_of, "confident_off", 2), cells(row_of, "gate_shut", 2),
-                 cells(row_of, "overlap", 2)]) + " |")
+                 cells(row_of, "searched", 2), cells(row_of, "searched_off", 2), cells(row_of, "overlap", 2)]) + " |")
         average = {c["name"]: data["averages"][(label, c["name"])] for c in configs}
         text.append("| **average** | " + " | ".join(
             " / ".join(fmt(average[c["name"]][key], digits) for c in configs)
             for key, digits in (("no_positive", 2), ("occluded", 2), ("updates_per_100", 1), ("scale_median", 2),
                                 ("scale_last", 2), ("held", 2), ("fast_share", 2), ("contaminated", 2),
-                                ("confident_off", 2), ("gate_shut", 2), ("overlap", 2)))
+                                ("confident_off", 2), ("gate_shut", 2), ("searched", 2), ("searched_off", 2),
+                                ("overlap", 2)))
                     + " |")
     text.append("")
     text.append("(average row, lock-lost column: mean share of the sequence held, 1 = never lost.)")

@@ -82,6 +82,22 @@ def test_template_gram_symmetric_and_in_the_templates_precision(dtype, atol):
         assert np.abs(gram - reference_dots(templates, templates)).max() > 1e-12
 
 
+def test_gram_assembly_reads_one_triangle_of_the_new_block():
+    # Symmetric by construction, not by trusting BLAS to write equal triangles: a new block
+    # whose lower triangle is garbage must leave no trace in the Gram.
+    from nrmlc.kernels.distance import _assemble_gram
+
+    rng = np.random.default_rng(3)
+    among_new = rng.random((4, 4))
+    upper = np.triu(among_new)
+    among_new[np.tril_indices(4, -1)] = -7.0
+    gram = np.empty((4, 4))
+    _assemble_gram(gram, np.empty((0, 0)), np.full(4, -1, dtype=np.int64), np.arange(4), np.empty(0, dtype=np.int64),
+                   among_new, np.empty((4, 0)))
+    np.testing.assert_array_equal(gram, gram.T)
+    np.testing.assert_array_equal(np.triu(gram), upper)
+
+
 def _unit_rows(rng, n_rows, dim, dtype):
     rows = rng.random((n_rows, dim))
     return (rows / np.linalg.norm(rows, axis=1, keepdims=True)).astype(dtype)

@@ -20,7 +20,8 @@ def hand_made_run(sequence, lose_at: int | None = 30) -> TrackResult:
     """Frames 0-19 on the ground truth; 20-29 half its width and height about its centre
     (IoU 0.25, scale ratio 0.5); from ``lose_at`` on, twice its size and far away (IoU 0,
     ratio 2). eps_pos* = 1 on frames 1-10 and 0.5 from frame 35 (0.05 elsewhere), occluded on
-    3 frames, 5 positive updates (at frame 20 with the box at IoU 0.25; at 33 after any loss)."""
+    3 frames, 5 positive updates (at frame 20 with the box at IoU 0.25; at 33 after any loss), the
+    re-detection search on frames 2, 4, 31 and 32."""
     truth = np.asarray(sequence.groundtruth[:N], dtype=np.float64)
     boxes = truth.copy()
     x, y, w, h = truth.T
@@ -36,7 +37,10 @@ def hand_made_run(sequence, lose_at: int | None = 30) -> TrackResult:
     occluded[[3, 7, 12]] = True
     updated = np.zeros(N, dtype=bool)
     updated[[5, 10, 15, 20, 33]] = True
-    diagnostics = {"error_positive": error_positive, "occluded": occluded, "updated_positive": updated}
+    searched = np.zeros(N, dtype=bool)
+    searched[[2, 4, 31, 32]] = True
+    diagnostics = {"error_positive": error_positive, "occluded": occluded, "updated_positive": updated,
+                   "redetect_searched": searched}
     return TrackResult(boxes=boxes, states=np.zeros((N, 6)), diagnostics=diagnostics)
 
 
@@ -62,6 +66,9 @@ def test_run_measures_by_hand(sequence):
     assert m["confident_off"] == pytest.approx(5 / 10)
     # Held (IoU >= 0.5) before the loss: frames 1-19; eps_pos* >= 0.1 on 1-10.
     assert m["gate_shut"] == pytest.approx(10 / 19)
+    # The search ran on 4 of the 39 frames, and on 2 of the 10 frames off the target (30-39).
+    assert m["searched"] == pytest.approx(4 / 39)
+    assert m["searched_off"] == pytest.approx(2 / 10)
     lax = script.run_measures(run.boxes, run.diagnostics, sequence, 0.6)
     assert lax["confident_off"] == pytest.approx(1.0) and lax["contaminated"] == m["contaminated"]
     assert lax["gate_shut"] == pytest.approx(10 / 19)  # eps_pos* = 1 there: above any threshold

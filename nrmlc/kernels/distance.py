@@ -216,15 +216,17 @@ def squared_norms(vectors: np.ndarray) -> np.ndarray:
 def _assemble_gram(gram, previous, kept, fresh, stayed, among_new, against_stayed):
     """Fill ``gram`` (n, n) from the carried block of ``previous`` and the new rows' products.
 
-    ``among_new`` (n_fresh, n_fresh) holds ``new @ new.T`` (symmetric), ``against_stayed``
-    (n_fresh, n_stayed) ``new @ stayed.T``; both triangles get the same value.
+    ``among_new`` (n_fresh, n_fresh) holds ``new @ new.T``, ``against_stayed`` (n_fresh,
+    n_stayed) ``new @ stayed.T``. Only the upper triangle of ``among_new`` is read and both
+    triangles of ``gram`` get the same value, so ``gram`` is exactly symmetric whatever
+    BLAS routine computed the product.
     """
     for a in range(stayed.shape[0]):
         for b in range(stayed.shape[0]):
             gram[stayed[a], stayed[b]] = previous[kept[stayed[a]], kept[stayed[b]]]
     for a in range(fresh.shape[0]):
         for b in range(fresh.shape[0]):
-            gram[fresh[a], fresh[b]] = among_new[a, b]
+            gram[fresh[a], fresh[b]] = among_new[min(a, b), max(a, b)]
         for b in range(stayed.shape[0]):
             value = np.float64(against_stayed[a, b])
             gram[fresh[a], stayed[b]] = value
@@ -283,7 +285,7 @@ def template_gram(templates: np.ndarray, previous: np.ndarray | None = None,
     products = {"new": np.empty((0, 0), dtype=templates.dtype), "stayed": np.empty((fresh.size, 0), dtype=templates.dtype)}
 
     def among_new() -> None:
-        # numpy runs ``a @ a.T`` as a syrk, which writes both triangles equal.
+        # numpy runs ``a @ a.T`` as a syrk (half the work of a product).
         products["new"] = new @ new.T
 
     def against_stayed() -> None:
