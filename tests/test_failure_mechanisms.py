@@ -66,12 +66,21 @@ def test_run_measures_by_hand(sequence):
     assert m["confident_off"] == pytest.approx(5 / 10)
     # Held (IoU >= 0.5) before the loss: frames 1-19; eps_pos* >= 0.1 on 1-10.
     assert m["gate_shut"] == pytest.approx(10 / 19)
+    # At the loss (frame 30): eps_pos* 0.05 < 0.1 on 30-34 of the ten frames 30-39; 0.05 on all of 20-29.
+    assert m["captured"] == pytest.approx(5 / 10)
+    assert m["faded"] == pytest.approx(0.0)
     # The search ran on 4 of the 39 frames, and on 2 of the 10 frames off the target (30-39).
     assert m["searched"] == pytest.approx(4 / 39)
     assert m["searched_off"] == pytest.approx(2 / 10)
     lax = script.run_measures(run.boxes, run.diagnostics, sequence, 0.6)
     assert lax["confident_off"] == pytest.approx(1.0) and lax["contaminated"] == m["contaminated"]
     assert lax["gate_shut"] == pytest.approx(10 / 19)  # eps_pos* = 1 there: above any threshold
+    assert lax["captured"] == pytest.approx(1.0)
+    # A loss at frame 11: the ten frames before it, 1-10, have eps_pos* = 1 (faded); the ten from it on,
+    # 11-20, have 0.05 (captured).
+    early = hand_made_run(sequence, lose_at=11)
+    e = script.run_measures(early.boxes, early.diagnostics, sequence, 0.1)
+    assert e["lost_frame"] == 11 and e["faded"] == pytest.approx(1.0) and e["captured"] == pytest.approx(1.0)
 
 
 def test_truth_at_interpolates_only_across_short_gaps():
@@ -103,6 +112,7 @@ def test_lock_needs_ten_consecutive_low_frames(sequence):
     assert np.isnan(m["confident_off"])  # never off the target: nothing to measure
     assert m["contaminated"] == pytest.approx(1 / 5)  # never lost: all five updates count, 33 on the target
     assert m["gate_shut"] == pytest.approx((10 + 5) / 29)  # held on 1-19 and 30-39; shut on 1-10 and 35-39
+    assert np.isnan(m["captured"]) and np.isnan(m["faded"])  # no loss of lock: nothing to measure
 
 
 def test_collect_averages_over_seeds(sequence, tmp_path):
@@ -177,15 +187,17 @@ def test_fast_steps_count_centre_moves_beyond_three_sigma(noise):
 
 def test_shortfalls_name_the_mechanisms_past_their_thresholds():
     base = dict(config="default", no_positive=0.1, updates_per_100=10.0, occluded=0.2, scale_last=1.0,
-                fast_share=0.0, fast_max=2.0, contaminated=0.1, confident_off=float("nan"), gate_shut=0.1, lost_runs=0,
+                fast_share=0.0, fast_max=2.0, contaminated=0.1, confident_off=float("nan"), gate_shut=0.1,
+                captured=float("nan"), faded=float("nan"), lost_runs=0,
                 lost_fraction=None, n_runs=5)
     rows = [dict(base, sequence="Deer", overlap=0.19, no_positive=0.84, fast_share=0.7, fast_max=9.0,
                  lost_runs=4, lost_fraction=0.27),
             dict(base, sequence="Occlusion2", overlap=0.39, scale_last=0.26),
             dict(base, sequence="Occlusion1", overlap=0.75),
-            dict(base, sequence="David3", overlap=0.3, gate_shut=0.7, lost_runs=5, lost_fraction=0.46),
+            dict(base, sequence="David3", overlap=0.3, gate_shut=0.7, lost_runs=5, lost_fraction=0.46, captured=0.2,
+                 faded=0.8),
             dict(base, sequence="Caviar1", overlap=0.5, contaminated=0.3, confident_off=0.6, lost_runs=3,
-                 lost_fraction=0.3),
+                 lost_fraction=0.3, captured=0.5, faded=0.49),
             dict(base, sequence="CarScale", overlap=0.73),           # above the paper's 0.70: not listed
             dict(base, sequence="Car4", overlap=0.2, config="paper"),  # only the default is judged
             dict(base, sequence="Dog", overlap=0.1)]                  # not one of the paper's sequences
@@ -194,8 +206,11 @@ def test_shortfalls_name_the_mechanisms_past_their_thresholds():
     assert "0.19 against 0.57" in lines[0] and "update starvation" in lines[0] and "motion beyond reach" in lines[0]
     assert "lock lost in 4 of 5 runs" in lines[0] and "scale drift" not in lines[0]
     assert "scale drift (the box 0.26" in lines[1] and "starvation" not in lines[1]
-    assert "lock never lost" in lines[2] and "none of the seven measures" in lines[2]
+    assert "lock never lost" in lines[2] and "none of the 9 measures" in lines[2]
     assert "the update gate shut on the target (eps_pos* at or above the threshold on 0.70" in lines[3]
     assert "template contamination (0.30" in lines[4] and "confident off the target" in lines[4]
     assert "gate shut" not in lines[4]
+    assert "faded before the loss (eps_pos* at or above the update threshold on 0.80" in lines[3]
+    assert "captured" not in lines[3] and "faded" not in lines[4]
+    assert "captured at the loss (eps_pos* below the update threshold on 0.50" in lines[4]
     assert "contamination" not in lines[0] and "confident off" not in lines[0]
