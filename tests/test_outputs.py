@@ -203,16 +203,25 @@ def test_unknown_video_extension_is_our_line_only(seq, tmp_path):
     assert not (tmp_path / "r.txt").exists() and not temporaries(tmp_path)
 
 
+def _default_sigint() -> None:
+    # A shell without job control starts background commands with SIGINT ignored, and Python
+    # then leaves it ignored (no KeyboardInterrupt): a test suite run as `make test &` would see
+    # the run finish. The child gets the default disposition, as in a terminal.
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
 @pytest.mark.parametrize("signum", [signal.SIGINT, signal.SIGTERM], ids=["SIGINT", "SIGTERM"])
 def test_signal_during_a_video_run_keeps_earlier_files(signum, tmp_path):
-    sequence = synthetic_suite(n_frames=400, size=(96, 128), n_sequences=1)[0]
+    # Long enough that the signal arrives well before the end: the fast settings track these
+    # frames at 400-650 fps, and the partial video appears about 0.5 s into the run.
+    sequence = synthetic_suite(n_frames=1200, size=(96, 128), n_sequences=1)[0]
     folder = write_otb_sequence(sequence, tmp_path / "Long")
     out, video = tmp_path / "r.txt", tmp_path / "v.mp4"
     out.write_text("earlier result\n")
     video.write_bytes(b"an earlier video")
     process = subprocess.Popen([sys.executable, "-m", "nrmlc", "track", str(folder), "--out", str(out),
                                 "--video", str(video), *FAST], env=subprocess_env(), stderr=subprocess.PIPE,
-                               text=True)
+                               text=True, preexec_fn=_default_sigint)
     deadline = time.monotonic() + 90
     while time.monotonic() < deadline and process.poll() is None:
         partial = [p for p in tmp_path.glob(".tmp-v-*.mp4") if p.stat().st_size > 0]
@@ -221,6 +230,7 @@ def test_signal_during_a_video_run_keeps_earlier_files(signum, tmp_path):
         time.sleep(0.05)
     assert process.poll() is None, "the run ended before it could be interrupted"
     time.sleep(0.3)  # well inside the run: frames are being tracked and drawn
+    assert process.poll() is None, "the run ended before the signal: make the sequence longer"
     process.send_signal(signum)
     _, err = process.communicate(timeout=60)
     # 130, or death by SIGINT: CPython may end a run whose Ctrl-C was handled by re-sending
