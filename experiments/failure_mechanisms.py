@@ -130,6 +130,13 @@ MEASURES = (("no_positive", "no positive among nearest", 3), ("occluded", "occlu
             ("gate_shut", "update refused while on the target", 3), ("captured", "captured at the loss", 3),
             ("faded", "faded before the loss", 3), ("searched", "re-detection searched", 3),
             ("searched_off", "searched while off the target", 3), ("overlap", "mean overlap", 3))
+#: The report's table: (key, column, decimals). The ``held`` column shows the loss of lock per
+#: configuration (:func:`_lost_text`) and, in the average row, the share of the sequence held.
+TABLE_COLUMNS = (("no_positive", "no pos.", 2), ("occluded", "occl.", 2), ("updates_per_100", "upd./100", 1),
+                 ("scale_median", "scale, median", 2), ("scale_last", "scale, last 10%", 2), ("held", "lock lost", 2),
+                 ("fast_share", "fast", 2), ("contaminated", "contam.", 2), ("confident_off", "conf. off", 2),
+                 ("gate_shut", "gate shut", 2), ("captured", "capt.", 2), ("faded", "faded", 2),
+                 ("searched", "re-det.", 2), ("searched_off", "re-det. off", 2), ("overlap", "overlap", 2))
 #: The measures of a (sequence, configuration), not of a run (:func:`fast_steps`): no per-seed value.
 SEQUENCE_MEASURES = ("fast_share",)
 
@@ -567,32 +574,23 @@ def report(context, data: dict) -> dict:
         f"*Re-det.*: share of the frames on which the re-detection search ran; *off*: the same among the frames at "
         f"IoU < {LOST_IOU:g}. "
         "Diagnostic only: no default is chosen on these runs.", "",
-        "| sequence | no pos. | occl. | upd./100 | scale, median | scale, last 10% | lock lost | fast | contam. "
-        "| conf. off | gate shut | capt. | faded | re-det. | re-det. off | overlap |",
-        "|---" * 16 + "|"]
+        "| sequence | " + " | ".join(column for _, column, _ in TABLE_COLUMNS) + " |",
+        "|---" * (len(TABLE_COLUMNS) + 1) + "|"]
 
-    def cells(row_of, key, digits):
+    def cell(row_of, key, digits):
+        if key == "held":  # the lock-lost column: runs that lose lock and where, per configuration
+            return " / ".join(_lost_text(row_of(c["name"])) for c in configs)
         return " / ".join(fmt(row_of(c["name"])[key], digits) for c in configs)
 
     for label, names in data["blocks"]:
-        text.append(f"| *{label}* |" + " |" * 15)
+        text.append(f"| *{label}* |" + " |" * len(TABLE_COLUMNS))
         for name in names:
             row_of = functools.partial(_row, data, name)
-            text.append(f"| {name} | " + " | ".join(
-                [cells(row_of, "no_positive", 2), cells(row_of, "occluded", 2), cells(row_of, "updates_per_100", 1),
-                 cells(row_of, "scale_median", 2), cells(row_of, "scale_last", 2),
-                 " / ".join(_lost_text(row_of(c["name"])) for c in configs), cells(row_of, "fast_share", 2),
-                 cells(row_of, "contaminated", 2), cells(row_of, "confident_off", 2), cells(row_of, "gate_shut", 2),
-                 cells(row_of, "captured", 2), cells(row_of, "faded", 2), cells(row_of, "searched", 2),
-                 cells(row_of, "searched_off", 2), cells(row_of, "overlap", 2)]) + " |")
+            text.append(f"| {name} | " + " | ".join(cell(row_of, key, digits) for key, _, digits in TABLE_COLUMNS)
+                        + " |")
         average = {c["name"]: data["averages"][(label, c["name"])] for c in configs}
         text.append("| **average** | " + " | ".join(
-            " / ".join(fmt(average[c["name"]][key], digits) for c in configs)
-            for key, digits in (("no_positive", 2), ("occluded", 2), ("updates_per_100", 1), ("scale_median", 2),
-                                ("scale_last", 2), ("held", 2), ("fast_share", 2), ("contaminated", 2),
-                                ("confident_off", 2), ("gate_shut", 2), ("captured", 2), ("faded", 2),
-                                ("searched", 2), ("searched_off", 2),
-                                ("overlap", 2)))
+            " / ".join(fmt(average[c["name"]][key], digits) for c in configs) for key, _, digits in TABLE_COLUMNS)
                     + " |")
     text.append("")
     text.append("(average row, lock-lost column: mean share of the sequence held, 1 = never lost.)")
