@@ -72,6 +72,11 @@ def test_run_measures_by_hand(sequence):
     # The search ran on 4 of the 39 frames, and on 2 of the 10 frames off the target (30-39).
     assert m["searched"] == pytest.approx(4 / 39)
     assert m["searched_off"] == pytest.approx(2 / 10)
+    # On the target before the loss: frames 1-19 at IoU 1 and 20-29 at 0.25 (boxes of twice or half
+    # the size, as the scale ratios say). Centred on the truth, a box of half or twice the side is
+    # still at IoU 0.25: the size alone explains the fit.
+    assert m["fit"] == pytest.approx((19 * 1.0 + 10 * 0.25) / 29)
+    assert m["fit_size"] == pytest.approx(m["fit"])
     lax = script.run_measures(run.boxes, run.diagnostics, sequence, 0.6)
     assert lax["confident_off"] == pytest.approx(1.0) and lax["contaminated"] == m["contaminated"]
     assert lax["gate_shut"] == pytest.approx(10 / 19)  # eps_pos* = 1 there: above any threshold
@@ -113,6 +118,7 @@ def test_lock_needs_ten_consecutive_low_frames(sequence):
     assert m["contaminated"] == pytest.approx(1 / 5)  # never lost: all five updates count, 33 on the target
     assert m["gate_shut"] == pytest.approx((10 + 5) / 29)  # held on 1-19 and 30-39; shut on 1-10 and 35-39
     assert np.isnan(m["captured"]) and np.isnan(m["faded"])  # no loss of lock: nothing to measure
+    assert m["fit"] == pytest.approx(m["overlap"])  # never lost, never below IoU 0.1: every frame
 
 
 def test_collect_averages_over_seeds(sequence, tmp_path):
@@ -188,12 +194,13 @@ def test_fast_steps_count_centre_moves_beyond_three_sigma(noise):
 def test_shortfalls_name_the_mechanisms_past_their_thresholds():
     base = dict(config="default", no_positive=0.1, updates_per_100=10.0, occluded=0.2, scale_last=1.0,
                 fast_share=0.0, fast_max=2.0, contaminated=0.1, confident_off=float("nan"), gate_shut=0.1,
-                captured=float("nan"), faded=float("nan"), lost_runs=0,
+                captured=float("nan"), faded=float("nan"), fit=0.9, fit_size=0.95, lost_runs=0,
                 lost_fraction=None, n_runs=5)
     rows = [dict(base, sequence="Deer", overlap=0.19, no_positive=0.84, fast_share=0.7, fast_max=9.0,
-                 lost_runs=4, lost_fraction=0.27),
+                 lost_runs=4, lost_fraction=0.27, fit=0.5),  # lock lost: the fit is not named
             dict(base, sequence="Occlusion2", overlap=0.39, scale_last=0.26),
-            dict(base, sequence="Occlusion1", overlap=0.75),
+            dict(base, sequence="Occlusion1", overlap=0.75, fit=0.75, fit_size=0.78),
+            dict(base, sequence="Skating1", overlap=0.3),
             dict(base, sequence="David3", overlap=0.3, gate_shut=0.7, lost_runs=5, lost_fraction=0.46, captured=0.2,
                  faded=0.8),
             dict(base, sequence="Caviar1", overlap=0.5, contaminated=0.3, confident_off=0.6, lost_runs=3,
@@ -202,15 +209,17 @@ def test_shortfalls_name_the_mechanisms_past_their_thresholds():
             dict(base, sequence="Car4", overlap=0.2, config="paper"),  # only the default is judged
             dict(base, sequence="Dog", overlap=0.1)]                  # not one of the paper's sequences
     lines = script.shortfalls({"rows": rows})
-    assert [line.split(":")[0] for line in lines] == ["Deer", "Occlusion2", "Occlusion1", "David3", "Caviar1"]
+    assert [line.split(":")[0] for line in lines] == ["Deer", "Occlusion2", "Occlusion1", "Skating1", "David3",
+                                                      "Caviar1"]
     assert "0.19 against 0.57" in lines[0] and "update starvation" in lines[0] and "motion beyond reach" in lines[0]
     assert "lock lost in 4 of 5 runs" in lines[0] and "scale drift" not in lines[0]
     assert "scale drift (the box 0.26" in lines[1] and "starvation" not in lines[1]
-    assert "lock never lost" in lines[2] and "none of the 9 measures" in lines[2]
-    assert "the update gate shut on the target (eps_pos* at or above the threshold on 0.70" in lines[3]
-    assert "template contamination (0.30" in lines[4] and "confident off the target" in lines[4]
-    assert "gate shut" not in lines[4]
-    assert "faded before the loss (eps_pos* at or above the update threshold on 0.80" in lines[3]
-    assert "captured" not in lines[3] and "faded" not in lines[4]
-    assert "captured at the loss (eps_pos* below the update threshold on 0.50" in lines[4]
+    assert "lock never lost" in lines[2] and "the box's fit (mean IoU 0.75" in lines[2] and "0.78 with each" in lines[2]
+    assert "none of the 10 measures" in lines[3] and "fit" not in lines[0]
+    assert "the update gate shut on the target (eps_pos* at or above the threshold on 0.70" in lines[4]
+    assert "template contamination (0.30" in lines[5] and "confident off the target" in lines[5]
+    assert "gate shut" not in lines[5]
+    assert "faded before the loss (eps_pos* at or above the update threshold on 0.80" in lines[4]
+    assert "captured" not in lines[4] and "faded" not in lines[5]
+    assert "captured at the loss (eps_pos* below the update threshold on 0.50" in lines[5]
     assert "contamination" not in lines[0] and "confident off" not in lines[0]
