@@ -100,13 +100,15 @@ from experiments.tables import fmt, mean_std, save_figure, write_csv
 from nrmlc import io
 from nrmlc.geometry import usable_boxes
 from nrmlc.metrics import overlaps as overlaps_of
+from nrmlc.tracker.nrmlc_tracker import REDETECT_TRIGGER
 
 STEM = "failure_mechanisms"
 TITLE = "Failure mechanisms: no positive template among the nearest, occlusion flag, scale drift, loss of lock"
 
 #: eps_pos* at or above this: no positive template among the best candidate's nearest
-#: (eps_pos = |y|^2 = 1 for unit patches; a little below 1 for rounding).
-NO_POSITIVE = 0.999
+#: (eps_pos = |y|^2 = 1 for unit patches; a little below 1 for rounding): the event that
+#: triggers the tracker's re-detection, at the same cut-off.
+NO_POSITIVE = REDETECT_TRIGGER
 #: Loss of lock: IoU below this ...
 LOST_IOU = 0.1
 #: ... on this many consecutive annotated frames.
