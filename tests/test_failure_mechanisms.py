@@ -88,6 +88,18 @@ def test_run_measures_by_hand(sequence):
     assert e["lost_frame"] == 11 and e["faded"] == pytest.approx(1.0) and e["captured"] == pytest.approx(1.0)
 
 
+def test_fit_centred_separates_the_centre_from_the_size(sequence):
+    # Frames 30-39 keep the true size but move half a width to the right: IoU 1/3, and 1 once
+    # centred on the truth; frames 20-29 are half the size about the true centre: 0.25 either way.
+    run = hand_made_run(sequence, lose_at=None)
+    truth = np.asarray(sequence.groundtruth[:N], dtype=np.float64)
+    run.boxes[30:] = truth[30:] + np.stack([truth[30:, 2] / 2, 0 * truth[30:, 2], 0 * truth[30:, 2],
+                                            0 * truth[30:, 2]], axis=1)
+    m = script.run_measures(run.boxes, run.diagnostics, sequence, 0.1)
+    assert m["fit"] == pytest.approx((19 * 1.0 + 10 * 0.25 + 10 / 3) / 39)
+    assert m["fit_size"] == pytest.approx((19 * 1.0 + 10 * 0.25 + 10 * 1.0) / 39)
+
+
 def test_truth_at_interpolates_only_across_short_gaps():
     truth = np.full((20, 4), np.nan)
     truth[0] = [0, 0, 10, 10]
