@@ -49,6 +49,7 @@ SCRIPTS = (
     "experiments.ablations",
     "experiments.ablation_per_sequence_motion",
     "experiments.ablation_oracle_recentring",
+    "experiments.ablation_oracle_gate",
     "experiments.failure_mechanisms",
     "experiments.scale_likelihood",
 )

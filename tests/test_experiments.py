@@ -17,11 +17,12 @@ from experiments.grid import context_from_args, run_script, score
 from nrmlc.data import open_sequence
 
 MY_SCRIPTS = ("table1_table2_accuracy", "fig3_qualitative", "fig4_lambda_sweep", "ablations",
-              "ablation_per_sequence_motion", "ablation_oracle_recentring")
+              "ablation_per_sequence_motion", "ablation_oracle_recentring", "ablation_oracle_gate")
 OUTPUTS = {"table1_table2_accuracy": (".png", ".csv", ".json"), "fig3_qualitative": (".png", ".json"),
            "fig4_lambda_sweep": (".png", ".csv", ".json"), "ablations": (".png", ".csv", ".json"),
            "ablation_per_sequence_motion": (".png", ".csv", ".json"),
-           "ablation_oracle_recentring": (".png", ".csv", ".json")}
+           "ablation_oracle_recentring": (".png", ".csv", ".json"),
+           "ablation_oracle_gate": (".png", ".csv", ".json")}
 
 
 def tiny_args(tmp, figures="figures"):
@@ -141,6 +142,16 @@ def test_recentring_free_column_is_the_table_run(grid):
     assert row["free"] == pytest.approx(table["cells"]["synth-01"]["Ours"]["overlap"])
     assert all(0 <= row[f"R = {period}"] <= 1 for period in (1, 10, 50))
     assert data["averages"]["other sequences"]["free"] == pytest.approx(row["free"])
+
+
+def test_oracle_gate_rule_column_is_the_table_run(grid):
+    """The rule column reads Table II's own default run from the cache; the gated ones are new runs."""
+    tmp, _, _ = grid
+    data = json.loads((tmp / "figures" / "ablation_oracle_gate.json").read_text())
+    (row,) = data["rows"]
+    table = json.loads((tmp / "figures" / "table1_table2_accuracy.json").read_text())
+    assert row["rule"] == pytest.approx(table["cells"]["synth-01"]["Ours"]["overlap"])
+    assert all(0 <= row[gate] <= 1 and 0 <= row[f"{gate} updates"] <= 100 for gate in data["gates"])
 
 
 def test_missing_and_failing_scripts(tmp_path, monkeypatch):
