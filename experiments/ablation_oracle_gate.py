@@ -60,20 +60,21 @@ class OracleGateTracker(NRMLCTracker):
 
     def _update_templates(self, frame, result) -> None:
         index = self.frame_index
-        if self.gate != "rule" and index < len(self.truth) and usable_boxes(self.truth[index]):
-            p = self.params
-            rule = not (p.occlusion_detection and result.occluded) and result.error_positive < p.update_error_threshold
-            on_target = bool(overlaps(result.box[None, :], self.truth[index][None, :])[0] >= ORACLE_IOU)
-            accept = {"truth": on_target, "rule and truth": rule and on_target,
-                      "rule or truth": rule or on_target}[self.gate]
-            # The update reads only these two fields; they are restored after it (it sets
-            # ``updated_positive``), so the frame's diagnostics stay the tracker's own.
-            kept = result.occluded, result.error_positive
-            result.occluded, result.error_positive = not accept, (0.0 if accept else np.inf)
+        if self.gate == "rule" or index >= len(self.truth) or not usable_boxes(self.truth[index]):
             super()._update_templates(frame, result)
-            result.occluded, result.error_positive = kept
             return
-        super()._update_templates(frame, result)
+        p = self.params
+        rule = not (p.occlusion_detection and result.occluded) and result.error_positive < p.update_error_threshold
+        on_target = bool(overlaps(result.box[None, :], self.truth[index][None, :])[0] >= ORACLE_IOU)
+        accept = {"truth": on_target, "rule and truth": rule and on_target, "rule or truth": rule or on_target}[self.gate]
+        # The update reads only these two fields; they are restored after it (it sets
+        # ``updated_positive``), so the frame's diagnostics stay the tracker's own.
+        kept = result.occluded, result.error_positive
+        result.occluded, result.error_positive = not accept, (0.0 if accept else np.inf)
+        try:
+            super()._update_templates(frame, result)
+        finally:
+            result.occluded, result.error_positive = kept
 
 
 @dataclass(frozen=True)
@@ -138,7 +139,8 @@ def runs(context) -> list:
 
 def collect(context) -> dict:
     rows = []
-    for block, sequences in blocks(context):
+    block_list = blocks(context)
+    for block, sequences in block_list:
         for sequence in sequences:
             row = {"block": block, "sequence": sequence.name}
             for gate in GATES:
@@ -152,7 +154,7 @@ def collect(context) -> dict:
                 row[f"{gate} updates"] = float(np.mean([100.0 * np.mean(u) for u in updated]))
             rows.append(row)
     averages = {block: {gate: float(np.mean([r[gate] for r in rows if r["block"] == block])) for gate in GATES}
-                for block, _ in blocks(context)}
+                for block, _ in block_list}
     return {"rows": rows, "averages": averages, "gates": list(GATES), "seeds": list(context.ablation_seeds),
             "oracle_iou": ORACLE_IOU}
 

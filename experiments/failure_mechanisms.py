@@ -284,8 +284,9 @@ def run_measures(boxes, diagnostics: dict, sequence, update_threshold: float) ->
     # ``score`` skips frame 0, and the diagnostics above start at frame 1: frame f is row f - 1.
     off_here = overlaps < LOST_IOU
     confident_here = error_positive[frames - 1] < update_threshold
-    held_here = (overlaps >= ON_TARGET_IOU) & (frames < (n if lost is None else lost))
-    on_here = (overlaps >= LOST_IOU) & (frames < (n if lost is None else lost))
+    before_loss = frames < (n if lost is None else lost)
+    held_here = (overlaps >= ON_TARGET_IOU) & before_loss
+    on_here = (overlaps >= LOST_IOU) & before_loss
     centred = predicted[on_here].copy()
     centred[:, :2] = truth[on_here, :2] + 0.5 * (truth[on_here, 2:] - centred[:, 2:])
     update_frames = np.flatnonzero(updated) + 1
