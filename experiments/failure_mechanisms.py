@@ -56,7 +56,7 @@ Per run (frame 0, the given box, excluded throughout):
    moved to the ground truth's centre, i.e. what its size and aspect alone allow: where the
    two are close, the fit is lost to the size, otherwise to the centre. Named only where no run
    loses lock (elsewhere the loss dominates). Added for Occlusion1, which never loses lock and
-   which measures 1-10 do not name; its threshold (:data:`FIT_NAMED`) was set knowing that
+   which measures 1-10 do not name; its threshold (``NAMED_WHEN['fit']``) was set knowing that
    sequence's mean overlap (0.76), so it describes and does not test;
 12. mean overlap (as in Table II), for context.
 
@@ -127,12 +127,12 @@ MAX_INTERPOLATION_GAP = 5
 SHORT_BY = 0.05
 #: An end scale ratio outside [SCALE_OFF, 1 / SCALE_OFF] counts as scale drift.
 SCALE_OFF = 0.7
-#: The box's fit is named, for a sequence where no run loses lock, when its mean IoU is below this.
-FIT_NAMED = 0.8
 #: Thresholds that name a mechanism for a sequence that falls short (module docstring).
 NAMED_WHEN = {"no_positive": 0.3, "updates_per_100": 2.0, "occluded": 0.5, "scale_last": SCALE_OFF,
               "fast_share": 0.05, "contaminated": 0.2, "confident_off": 0.5,
-              "gate_shut": 0.5, "captured": 0.5, "faded": 0.5}
+              "gate_shut": 0.5, "captured": 0.5, "faded": 0.5,
+              # the box's fit: named below this, and only for a sequence where no run loses lock
+              "fit": 0.8}
 #: Per-configuration numbers: (key, short column name, decimals).
 MEASURES = (("no_positive", "no positive among nearest", 3), ("occluded", "occlusion flag", 3),
             ("updates_per_100", "positive updates / 100 fr.", 1), ("scale_median", "scale ratio, median", 2),
@@ -530,7 +530,7 @@ def mechanisms(row: dict) -> list[str]:
     for key, text in _THRESHOLD_MECHANISMS:
         if math.isfinite(row[key]) and row[key] >= NAMED_WHEN[key]:
             named.append(text(row))
-    if not row["lost_runs"] and math.isfinite(row["fit"]) and row["fit"] < FIT_NAMED:
+    if not row["lost_runs"] and math.isfinite(row["fit"]) and row["fit"] < NAMED_WHEN["fit"]:
         named.append(f"the box's fit (mean IoU {fmt(row['fit'], 2)} on the frames on the target before any loss; "
                      f"{fmt(row['fit_size'], 2)} with each box centred on the truth, i.e. its size alone)")
     return named
