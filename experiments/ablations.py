@@ -25,7 +25,8 @@ Families, each against the default tracker (the first row of each):
   wide translation noise, if switched on): the default vs the paper's value;
 - every numeric extension left off by default (:data:`TRIAL_VALUES`: a share of wide
   translation noise, the estimate as a mean of the top particles, a velocity in the motion
-  model, anti-aliased patches) and SCM's negative push-out zone: the default vs a trial value;
+  model, anti-aliased patches, the local-patch generative term) and SCM's negative push-out
+  zone: the default vs a trial value;
 - the template spread: under SCM sampling the positive centres' sigma (half and
   twice the default), under the annulus the radii r and s (half and twice each).
 
@@ -73,7 +74,7 @@ METRICS = (("overlap", "mean overlap", 3), ("cle", "CLE (px)", 1), ("negative_sh
 #: when the default has the paper's (off) value. Their screening on the development sequences,
 #: which chose the defaults, is in docs/FINDINGS.md.
 TRIAL_VALUES = {"wide_share": 0.2, "estimate_count": 20, "velocity_damping": 0.5, "antialias": 0.5,
-                "negative_push": 0.5}
+                "negative_push": 0.5, "generative_weight": 10.0}
 
 #: Fields with a family of their own below (not repeated as switches).
 OWN_FAMILIES = ("coding", "confidence", "occlusion_detection")

@@ -18,7 +18,8 @@ Per frame:
    confidence-weighted mean of the ``estimate_count`` most confident. If the best
    candidate's code uses no positive template, first re-detect (*ours*, ``redetect_count``):
    code a wider search around the previous estimate, whose candidates count only where
-   eps_pos < ``redetect_accept``;
+   eps_pos < ``redetect_accept``. With ``generative_weight`` > 0 (*ours*, off by default),
+   log h also gains SCM's local-patch similarity (:mod:`nrmlc.tracker.generative`);
 6. every ``update_interval`` frames, resample the negative templates around the
    estimate and, unless the target is judged occluded (LEN(neg*) too large),
    add the result to the positive templates when eps_pos* < threshold.
@@ -37,6 +38,7 @@ from nrmlc.geometry import box_to_state, clamp_states, state_to_affine, state_to
 from nrmlc.kernels.coding import code_candidates
 from nrmlc.kernels.distance import candidate_template_dots, template_gram
 from nrmlc.kernels.warp import centre_patches, warp_patches
+from nrmlc.tracker.generative import LocalHistogramModel
 from nrmlc.tracker.params import TrackerParams
 from nrmlc.tracker.templates import (SCM_PUSH_INIT, SCM_PUSH_UPDATE, negative_states, positive_states,
                                      scm_negative_states, scm_positive_states)
@@ -224,6 +226,7 @@ class NRMLCTracker:
         self.state: np.ndarray | None = None
         self.last: FrameResult | None = None
         self.last_candidates: dict | None = None
+        self.generative: LocalHistogramModel | None = None
 
     # -- templates -------------------------------------------------------
     def patches(self, frame: np.ndarray, states: np.ndarray) -> np.ndarray:
@@ -288,6 +291,10 @@ class NRMLCTracker:
         frame = self.prefilter(frame)
         positives = self._sample_positives(frame, self.state)
         self._set_templates(positives, self._sample_negatives(frame, self.state, first=True))
+        self.generative = None
+        if p.generative_weight > 0:
+            self.generative = LocalHistogramModel(self.rng, self.patches(frame, self.state[None, :])[0],
+                                                  p.patch_size, p.generative_neighbours, p.generative_lam)
         self.frame_index = 0
         self.last = None
 
@@ -304,6 +311,10 @@ class NRMLCTracker:
         result = self.step(frame)
         if (self.frame_index + 1) % self.params.update_interval == 0:
             self._update_templates(frame, result)
+        if self.generative is not None and (self.frame_index + 1) % self.params.generative_interval == 0:
+            coded, best = self.last_candidates, self.last_candidates["best"]
+            self.generative.update(coded["local_neighbours"][best], coded["local_codes"][best],
+                                   float(coded["occluded_share"][best]))
         return result.box
 
     def move_to(self, box) -> None:
@@ -395,7 +406,8 @@ class NRMLCTracker:
         -------
         dict with ``dots (n, n_templates)``, ``neighbours (n, k_max)``,
         ``coefficients (n, m, k_max)``, ``weights (n, m)``, ``codes (n, k_max)``,
-        ``error_positive (n,)``, ``error_negative (n,)``, ``log_confidence (n,)``.
+        ``error_positive (n,)``, ``error_negative (n,)``, ``log_confidence (n,)``; with the
+        generative term also those of :meth:`_generative_similarity`.
         """
         p = self.params
         dots = candidate_template_dots(candidates, self.templates)
@@ -413,8 +425,38 @@ class NRMLCTracker:
         # log h: the ranking and the condensation weights are taken from it, never from h,
         # so no alpha can overflow into a tie.
         log_confidence = sign * p.alpha * (error_positive - error_negative)
+        extra = {}
+        if self.generative is not None:
+            extra = self._generative_similarity(candidates, log_confidence)
+            term = p.generative_weight * np.log(np.maximum(extra["similarity"], 1e-300))
+            # Only where the positives take part in the code: where the discriminative
+            # likelihood is flat (the target hidden or lost), the term would hold the cloud
+            # on whatever background it prefers instead of letting it spread and search.
+            recognised = error_positive < REDETECT_TRIGGER
+            floor = term[recognised].min() if recognised.any() else 0.0
+            log_confidence = log_confidence + np.where(recognised, term, floor)
         return dict(dots=dots, neighbours=neighbours, coefficients=coefficients, weights=weights, codes=codes,
-                    error_positive=error_positive, error_negative=error_negative, log_confidence=log_confidence)
+                    error_positive=error_positive, error_negative=error_negative, log_confidence=log_confidence,
+                    **extra)
+
+    def _generative_similarity(self, candidates: np.ndarray, log_confidence: np.ndarray) -> dict:
+        """The generative term's similarity (``generative_weight``) of each candidate (n,):
+        the ``generative_candidates`` most confident are coded locally, the others get the
+        lowest of their similarities. Also each candidate's occluded share (n,) and its
+        local codes ``local_neighbours`` / ``local_codes`` (n, n_local, k), zero where not coded."""
+        top = np.argsort(-log_confidence, kind="stable")[:self.params.generative_candidates]
+        local = self.generative.similarity(candidates[top])
+        n = len(candidates)
+        similarity = np.full(n, local["similarity"].min())
+        similarity[top] = local["similarity"]
+        occluded_share = np.ones(n)
+        occluded_share[top] = local["occluded_share"]
+        local_neighbours = np.zeros((n,) + local["neighbours"].shape[1:], dtype=np.int64)
+        local_neighbours[top] = local["neighbours"]
+        local_codes = np.zeros((n,) + local["codes"].shape[1:])
+        local_codes[top] = local["codes"]
+        return dict(similarity=similarity, occluded_share=occluded_share, local_neighbours=local_neighbours,
+                    local_codes=local_codes)
 
     def _code(self, candidates, dots, gram, template_sq_norms, n_positive) -> tuple:
         """Algorithm 1 on the k_max nearest of the given templates, one parallel pass

@@ -7,6 +7,7 @@ from dataclasses import dataclass
 
 from nrmlc.config import PATCH_SIZE
 from nrmlc.errors import ParameterError
+from nrmlc.tracker.generative import LOCAL_SIZE, N_ATOMS
 
 CODING_MODES = ("regularized", "constrained", "plain")
 CONFIDENCE_FORMS = ("corrected", "literal")
@@ -164,6 +165,21 @@ class TrackerParams:
         A re-detection candidate can become the estimate (and carry weight) only if its
         eps_pos < this: a wide search would otherwise jump to whatever the negatives rank
         well, such as another player or the other jogger.
+    generative_weight : float
+        A local-patch generative term in the confidence (*ours*, after SCM's generative
+        model; 0 = off, the paper): log h gains ``generative_weight * log(similarity)``,
+        the similarity of the candidate's 6x6 local patches, coded on 50 atoms of the
+        first frame, to a template histogram that stays 0.95 the first frame's, on the
+        candidates whose code uses a positive template (:mod:`nrmlc.tracker.generative`,
+        which cites SCM's files). Off by default for its cost (docs/FINDINGS.md, round 13).
+    generative_candidates : int
+        Only this many most confident candidates are coded locally (SCM codes all: 4x
+        the cost at 600 particles); the others get the lowest of their similarities.
+    generative_neighbours, generative_lam : int, float
+        The local coder: approximated LLC on this many nearest atoms with this ridge (SCM
+        codes with a lasso).
+    generative_interval : int
+        The template histogram is updated every this many frames (SCM's ``demo.m``: 5).
     """
 
     n_particles: int = 600
@@ -202,6 +218,11 @@ class TrackerParams:
     redetect_count: int = 300
     redetect_factor: float = 4.0
     redetect_accept: float = 0.3
+    generative_weight: float = 0.0
+    generative_candidates: int = 150
+    generative_neighbours: int = 5
+    generative_lam: float = 1.0
+    generative_interval: int = 5
 
     def __post_init__(self) -> None:
         def fail(name: str, message: str) -> None:
@@ -211,13 +232,15 @@ class TrackerParams:
         object.__setattr__(self, "motion_sigmas", tuple(float(v) for v in self.motion_sigmas))
         object.__setattr__(self, "dictionary_sizes", tuple(int(v) for v in self.dictionary_sizes))
         for name in ("n_particles", "n_positive", "n_negative", "n_iterations", "update_interval",
-                     "max_positive", "occlusion_max_negative", "patch_size", "estimate_count", "redetect_count"):
+                     "max_positive", "occlusion_max_negative", "patch_size", "estimate_count", "redetect_count",
+                     "generative_candidates", "generative_neighbours", "generative_interval"):
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, int):
                 fail(name, f"must be an integer, got {value!r}")
         for name in ("positive_radius", "negative_radius", "lam", "beta", "alpha", "update_error_threshold",
                      "coefficient_tolerance", "positive_sigma", "negative_push", "wide_share", "wide_factor",
-                     "velocity_damping", "antialias", "redetect_factor", "redetect_accept"):
+                     "velocity_damping", "antialias", "redetect_factor", "redetect_accept", "generative_weight",
+                     "generative_lam"):
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
                 fail(name, f"must be a finite number, got {value!r}")
@@ -265,6 +288,19 @@ class TrackerParams:
             fail("redetect_factor", f"must be in [1, 100], got {self.redetect_factor}")
         if not 0 < self.redetect_accept <= 1:
             fail("redetect_accept", f"must be in (0, 1], got {self.redetect_accept}")
+        if not 0 <= self.generative_weight <= 1000:
+            fail("generative_weight", f"must be in [0, 1000], got {self.generative_weight}")
+        if not 1 <= self.generative_candidates <= MAX_PARTICLES:
+            fail("generative_candidates", f"must be in 1..{MAX_PARTICLES}, got {self.generative_candidates}")
+        if not 1 <= self.generative_neighbours <= N_ATOMS:
+            fail("generative_neighbours", f"must be in 1..{N_ATOMS}, got {self.generative_neighbours}")
+        if not 0 < self.generative_lam <= 1000:
+            fail("generative_lam", f"must be in (0, 1000], got {self.generative_lam}")
+        if self.generative_weight > 0 and self.patch_size < LOCAL_SIZE:
+            fail("patch_size", f"must be >= {LOCAL_SIZE} (the local patches) when generative_weight > 0, "
+                               f"got {self.patch_size}")
+        if self.generative_interval < 1:
+            fail("generative_interval", f"must be >= 1, got {self.generative_interval}")
         if not 1 <= self.estimate_count <= self.n_particles:
             fail("estimate_count", f"must be in 1..n_particles ({self.n_particles}), got {self.estimate_count}")
         if not 0 <= self.velocity_damping <= 1:
@@ -341,7 +377,8 @@ PRESETS: dict[str, dict] = {
     "paper": dict(template_sampling="annulus", propagation="condensation", alpha=2.5,
                   patch_normalization="unit", dictionaries="joint", wide_share=0.0,
                   estimate_count=1, keep_initial_positives=False, velocity_damping=0.0,
-                  antialias=0.0, update_interval=5, update_error_threshold=0.1, redetect_count=0),
+                  antialias=0.0, update_interval=5, update_error_threshold=0.1, redetect_count=0,
+                  generative_weight=0.0),
 }
 
 
