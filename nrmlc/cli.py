@@ -169,16 +169,22 @@ def main(argv: list[str] | None = None) -> int:
     # so that calling main() from Python does not change the caller's formatting.
     format_warning = warnings.formatwarning
     warnings.formatwarning = lambda message, category, *rest: f"warning: {message}\n"
-    # SIGTERM ends a run like Ctrl-C: outputs in progress are dropped, earlier files kept.
-    previous_sigterm = None
+    # SIGTERM ends a run like Ctrl-C: outputs in progress are dropped, earlier files kept. Both
+    # also set interrupt_requested, in case the KeyboardInterrupt lands in a finaliser.
+    from nrmlc.errors import interrupt_requested
+
+    interrupt_requested.clear()
+    previous = {}
     if threading_main():
-        previous_sigterm = signal.signal(signal.SIGTERM, _terminate)
+        previous[signal.SIGTERM] = signal.signal(signal.SIGTERM, _terminate)
+        if signal.getsignal(signal.SIGINT) is signal.default_int_handler:  # not where SIGINT is ignored
+            previous[signal.SIGINT] = signal.signal(signal.SIGINT, _terminate)
     try:
         return _run(args)
     finally:
         warnings.formatwarning = format_warning
-        if previous_sigterm is not None:
-            signal.signal(signal.SIGTERM, previous_sigterm)
+        for signum, handler in previous.items():
+            signal.signal(signum, handler)
 
 
 def threading_main() -> bool:
@@ -188,6 +194,9 @@ def threading_main() -> bool:
 
 
 def _terminate(signum, frame) -> None:
+    from nrmlc.errors import interrupt_requested
+
+    interrupt_requested.set()
     raise KeyboardInterrupt
 
 

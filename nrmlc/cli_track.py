@@ -84,6 +84,7 @@ def run_track(args: argparse.Namespace) -> int:
     from nrmlc.errors import ParameterError
     from nrmlc.metrics import evaluate
     from nrmlc.tracker.params import TrackerParams, parse_param_assignment
+    from nrmlc.errors import interrupt_requested
     from nrmlc.tracker.run import track_sequence
 
     overrides = dict(parse_param_assignment(text) for text in args.param)
@@ -125,6 +126,8 @@ def run_track(args: argparse.Namespace) -> int:
     try:
         result = track_sequence(sequence, params, seed=args.seed, n_frames=args.frames, init_box=init_box,
                                 progress=True, on_frame=on_frame)
+        if interrupt_requested.is_set():
+            raise KeyboardInterrupt  # a signal whose KeyboardInterrupt a finaliser swallowed
         # All or nothing: a failure while writing one output leaves every earlier file as it was.
         with io.Together() as outputs:
             outputs.boxes(args.out, result.boxes)

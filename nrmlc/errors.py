@@ -6,6 +6,13 @@ exits non-zero; tracebacks are reserved for bugs (or ``--debug``).
 """
 from __future__ import annotations
 
+import threading
+
+#: Set by the CLI's SIGINT / SIGTERM handler. A KeyboardInterrupt that lands while Python runs a
+#: finaliser (a ``__del__``, e.g. llvmlite's) is printed and dropped, so the CLI also checks this
+#: before it commits any output.
+interrupt_requested = threading.Event()
+
 
 class NrmlcError(Exception):
     """Base class: a one-line message that names the file or parameter."""

@@ -368,3 +368,27 @@ def test_json_is_strict_whatever_the_values(tmp_path):
     # json.loads would accept NaN; parse_constant makes it fail as JavaScript or jq would.
     assert json.loads(path.read_text(), parse_constant=refuse) == {
         "nan": None, "inf": None, "3": [0, 1], "row": [0.5, None], "path": str(tmp_path)}
+
+
+def test_an_interrupt_a_finaliser_swallowed_still_ends_the_run(seq, tmp_path, monkeypatch, capsys):
+    """A KeyboardInterrupt raised inside a ``__del__`` is printed and dropped by Python, and the
+    run would go on to replace the outputs; the signal's flag stops it before the commit."""
+    import nrmlc.errors
+    import nrmlc.tracker.run
+
+    real = nrmlc.tracker.run.track_sequence
+
+    def swallowed(*args, **kwargs):
+        result = real(*args, **kwargs)
+        nrmlc.errors.interrupt_requested.set()  # as _terminate does, its exception lost
+        return result
+
+    monkeypatch.setattr(nrmlc.tracker.run, "track_sequence", swallowed)
+    out = tmp_path / "r.txt"
+    out.write_text("earlier result\n")
+    assert main(["track", str(seq), "--out", str(out), *FAST]) == 130
+    assert capsys.readouterr().err.strip().splitlines()[-1] == "interrupted"
+    assert out.read_text() == "earlier result\n" and not temporaries(tmp_path)
+    monkeypatch.undo()
+    assert main(["track", str(seq), "--out", str(out), *FAST]) == 0  # the next run starts clear
+    assert out.read_text() != "earlier result\n"
