@@ -7,6 +7,7 @@ the traceback instead.
 from __future__ import annotations
 
 import argparse
+import functools
 import json
 import os
 import re
@@ -174,6 +175,8 @@ def main(argv: list[str] | None = None) -> int:
     from nrmlc.errors import interrupt_requested
 
     interrupt_requested.clear()
+    unraisable_hook = sys.unraisablehook
+    sys.unraisablehook = functools.partial(_quiet_lost_interrupt, unraisable_hook)
     previous = {}
     if threading_main():
         previous[signal.SIGTERM] = signal.signal(signal.SIGTERM, _terminate)
@@ -183,6 +186,7 @@ def main(argv: list[str] | None = None) -> int:
         return _run(args)
     finally:
         warnings.formatwarning = format_warning
+        sys.unraisablehook = unraisable_hook
         for signum, handler in previous.items():
             signal.signal(signum, handler)
 
@@ -191,6 +195,13 @@ def threading_main() -> bool:
     import threading
 
     return threading.current_thread() is threading.main_thread()
+
+
+def _quiet_lost_interrupt(previous_hook, unraisable) -> None:
+    """Python's report of an exception raised in a finaliser, except our own interrupt's (the
+    flag carries it on, and the run ends with the one line "interrupted")."""
+    if not (isinstance(unraisable.exc_type, type) and issubclass(unraisable.exc_type, KeyboardInterrupt)):
+        previous_hook(unraisable)
 
 
 def _terminate(signum, frame) -> None:
