@@ -27,6 +27,8 @@ Families, each against the default tracker (the first row of each):
   translation noise, the estimate as a mean of the top particles, a velocity in the motion
   model, anti-aliased patches, the local-patch generative term) and SCM's negative push-out
   zone: the default vs a trial value;
+- the generative term's coding, when it is on with a coarser grid than SCM's: the default vs
+  SCM's 2-px grid on 150 candidates;
 - the template spread: under SCM sampling the positive centres' sigma (half and
   twice the default), under the annulus the radii r and s (half and twice each).
 
@@ -163,6 +165,11 @@ def families(context) -> list[tuple[str, list[tuple[str, object]]]]:
         if field in fields and field not in differing and getattr(base, field) != value:
             out.append((field.replace("_", " "), [(f"{getattr(base, field):g} (default)", base),
                                                   (f"{value:g}", base.replace(**{field: value}))]))
+    if getattr(base, "generative_weight", 0) > 0 and (base.generative_step, base.generative_candidates) != (2, 150):
+        # The default codes a coarser grid of fewer candidates than SCM, for speed (FINDINGS, round 14).
+        out.append(("generative term's coding", [
+            (f"every {base.generative_step} px, {base.generative_candidates} candidates (default)", base),
+            ("every 2 px (SCM's grid), 150 candidates", base.replace(generative_step=2, generative_candidates=150))]))
     if getattr(base, "template_sampling", "annulus") == "annulus":
         r, s = base.positive_radius, base.negative_radius
         out.append(("template radii", [(f"r = {r:g}, s = {s:g} (default)", base)]

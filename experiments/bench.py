@@ -15,7 +15,7 @@ Writes ``bench.md`` (printed too) and ``bench.json`` (every number) to
   test oracles; for distances also a numpy version with the same sgemm, the fair
   comparison for the selection part). Per-candidate references cost the same for
   every candidate, so they are timed on a subset and scaled (column "reference on").
-* **End to end**: the tracker (every coding mode) and OpenCV's TrackerMIL on the
+* **End to end**: the tracker (every coding mode, and the generative term flipped) and OpenCV's TrackerMIL on the
   same frames, decoding excluded, in this process, in alternating rounds so
   that a change of machine load hits both alike; ratios in words.
 * **Thread set-ups**, each in a fresh process: the API as a user runs it (nothing
@@ -543,6 +543,7 @@ def bench_end_to_end(sequence, n_frames: int | None, rounds: int) -> list[dict]:
 
     Also times one run with decoding included (``track_sequence`` reading the frames).
     """
+    from experiments.ablations import TRIAL_VALUES
     from nrmlc.tracker.params import TrackerParams
     from nrmlc.tracker.run import track_sequence
 
@@ -553,6 +554,9 @@ def bench_end_to_end(sequence, n_frames: int | None, rounds: int) -> list[dict]:
     _nrmlc_fps(sequence, frames[:8], default)  # loads the compiled kernels
     # The default parameters exactly, and the other coding modes changed from them.
     variants = {f"NRMLC {mode}": default if mode == default.coding else default.replace(coding=mode) for mode in MODES}
+    # The generative term's cost: the default with the switch flipped (to its ablation value when off).
+    flipped = 0.0 if default.generative_weight > 0 else TRIAL_VALUES["generative_weight"]
+    variants[f"NRMLC generative_weight={flipped:g}"] = default.replace(generative_weight=flipped)
     samples = {name: [] for name in variants}
     samples["OpenCV TrackerMIL"] = []
     for index in range(rounds):
@@ -769,6 +773,10 @@ def _summary(result: dict) -> list[str]:
             other = by_name.get((sequence, f"NRMLC {mode}"))
             if other and mode != default_mode:
                 lines.append(f"{sequence}: " + compare(mode, other["fps_tracking"], default_mode, fps) + ".")
+        for (other_sequence, other_tracker), other in by_name.items():
+            if other_sequence == sequence and "generative_weight" in other_tracker:
+                lines.append(f"{sequence}: " + compare(other_tracker.split()[-1], other["fps_tracking"],
+                                                       "the default", fps) + ".")
     threads = result.get("threads") or []
     if threads:
         reference = threads[0]

@@ -110,7 +110,7 @@ def _markdown(result, budget) -> str:
         "### Fig. 2: mean gray value of templates and candidates",
         "",
         f"Data: {data['label']}; sequences {', '.join(data['sequences'])}; tracker seed 0, {data['params']}; "
-        f"{budget.describe()} (all 600 candidates of each recorded frame, and every template present then). "
+        f"{budget.describe()} (every candidate of each recorded frame, and every template present then). "
         "Every vector is a unit-norm 32x32 patch (1024 values).",
         "",
         "| set | paper | measured mean | min | p1 | median | p99 | max | n |",

@@ -62,7 +62,7 @@ class Budget:
     seeds : tuple of int or None
         Seeds of tracking runs (None: the script's choice from the context).
     n_particles : int or None
-        Override the tracker's particle count (None: the default 600).
+        Override the tracker's particle count (None: its parameters').
     """
 
     max_frames: int | None = 100

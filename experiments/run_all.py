@@ -93,13 +93,18 @@ def collect_jobs(context, modules, failures: list) -> dict:
 
 
 def job_cost(job) -> float:
-    """Work of a job in 600-particle NRMLC frames (measured: the particle count scales the
-    time about linearly; the exact constrained coder is about 1.3x slower, per-class
-    dictionaries, which code twice, about 1.35x)."""
+    """Work of a job in 600-particle NRMLC frames without the generative term (measured: the
+    particle count scales the time about linearly; the exact constrained coder is about 1.3x
+    slower, per-class dictionaries, which code twice, about 1.35x)."""
     params = getattr(job, "params", None)
     if params is None:  # an OpenCV peer
         return job.frames() * ESTIMATE_FPS_PER_WORKER / ESTIMATE_PEER_FPS
     factor = params.n_particles / 600.0
+    if getattr(params, "generative_weight", 0) > 0:
+        # Measured (FINDINGS, rounds 13-14): SCM's full grid (150 candidates x 196 local patches)
+        # adds 2.6 frames' work, 20 x 49 adds 0.18.
+        n_local = ((params.patch_size - 6) // params.generative_step + 1) ** 2
+        factor += 0.1 + 2.5 * params.generative_candidates * n_local / (150 * 196)
     if params.coding == "constrained":
         factor *= 1.3
     if getattr(params, "dictionaries", "joint") == "per_class":

@@ -26,7 +26,7 @@ def add_track_command(commands) -> None:
                             "video file OpenCV reads (.mp4, .avi, ...; needs --init-box)")
     track.add_argument("--out", required=True, metavar="RESULT.txt", help="output boxes, one x,y,w,h line per frame")
     track.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
-    track.add_argument("--particles", type=int, help="number of particles (default 600)")
+    track.add_argument("--particles", type=int, help="number of particles (default: the preset's)")
     track.add_argument("--coding", choices=("regularized", "constrained", "plain"), help="coding mode (default regularized)")
     track.add_argument("--lambda", dest="lam", type=float, help="l2 weight on the coefficients (default 1)")
     track.add_argument("--beta", type=float, help="l2 weight on the dictionary weights (default 0.1)")

@@ -75,6 +75,7 @@ def test_quick_bench_writes_json_and_markdown(tmp_path):
     assert abs(sum(parts) - frame) < 1e-6 * frame + 1e-9
     trackers = {row["tracker"] for row in data["end_to_end"]}
     assert {"NRMLC regularized", "NRMLC constrained", "NRMLC plain", "OpenCV TrackerMIL"} <= trackers
+    assert any(name.startswith("NRMLC generative_weight=") for name in trackers)  # the switch's cost
     assert all(row["fps_tracking"] > 0 for row in data["end_to_end"])
     assert data["machine"]["numba_threads"] >= 1 and data["machine"]["numpy"]
     assert data["threads_option"] is None  # the API's own configuration, untouched

@@ -35,6 +35,18 @@ def test_local_patches_are_scms_grid_of_unit_6x6_patches():
         np.testing.assert_allclose(local[0, index], expected / np.linalg.norm(expected), rtol=1e-6)
 
 
+def test_a_coarser_grid_cuts_fewer_patches_but_keeps_the_dense_grids_atoms():
+    patch = _unit_patch(np.random.default_rng(6))
+    dense, coarse = local_patches(patch[None], 32), local_patches(patch[None], 32, step=4)
+    assert coarse.shape == (1, 7 * 7, 36)
+    # Every 4 px is every other patch of the 2-px grid, in both directions.
+    np.testing.assert_array_equal(coarse[0], dense[0].reshape(14, 14, 36)[::2, ::2].reshape(49, 36))
+    model = LocalHistogramModel(np.random.default_rng(7), patch, 32, 5, 1.0, step=4)
+    np.testing.assert_array_equal(model.atoms, LocalHistogramModel(np.random.default_rng(7), patch, 32, 5, 1.0).atoms)
+    assert model.atoms.shape == (N_ATOMS, 36) and model.histogram.shape == (49, N_ATOMS)
+    assert model.similarity(patch[None])["similarity"][0] == pytest.approx(1.0)
+
+
 def test_kmeans_is_seeded_and_gives_unit_atoms():
     points = local_patches(_unit_patch(np.random.default_rng(0))[None], 32)[0]
     atoms = kmeans_atoms(np.random.default_rng(1), points, N_ATOMS)
@@ -141,6 +153,8 @@ def test_the_paper_preset_has_no_generative_term():
     (dict(generative_neighbours=N_ATOMS + 1), "generative_neighbours"),
     (dict(generative_lam=0.0), "generative_lam"),
     (dict(generative_interval=0), "generative_interval"),
+    (dict(generative_step=0), "generative_step"),
+    (dict(generative_step=7), "generative_step"),
     (dict(generative_weight=1.0, patch_size=5), "patch_size"),
 ])
 def test_bad_values_name_the_parameter(changes, name):

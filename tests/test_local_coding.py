@@ -6,7 +6,7 @@ import pytest
 
 from nrmlc.errors import ParameterError
 from nrmlc.kernels.coding import code_candidates
-from nrmlc.kernels.local_coding import code_local_patches
+from nrmlc.kernels.local_coding import code_local_patches, match_local_histogram
 
 
 def _unit(rng, shape, dtype):
@@ -50,6 +50,42 @@ def test_an_atom_reconstructs_itself():
     neighbours, codes, errors = code_local_patches(local, atoms, atoms @ atoms.T, 1, 1.0)
     np.testing.assert_array_equal(neighbours[0, :, 0], np.arange(4))
     np.testing.assert_allclose(errors, 0.0, atol=1e-12)
+
+
+def _numpy_intersection(neighbours, codes, errors, histogram, occlusion_error):
+    """The oracle: SCM's histogram intersection over the visible local patches, in numpy."""
+    visible = errors < occlusion_error                                           # (n, n_local)
+    candidate = np.abs(codes) * visible[:, :, None]                              # (n, n_local, k)
+    template = np.take_along_axis(histogram[None], neighbours, axis=2) * visible[:, :, None]
+    candidate_sum = candidate.sum(axis=(1, 2))
+    template_sum = (histogram.sum(axis=1)[None, :] * visible).sum(axis=1)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        overlap = np.minimum(candidate / candidate_sum[:, None, None],
+                             template / template_sum[:, None, None]).sum(axis=(1, 2))
+    return np.where(candidate_sum > 0, np.nan_to_num(overlap), 0.0), (~visible).sum(axis=1)
+
+
+def test_the_histogram_match_agrees_with_numpy_and_counts_the_occluded():
+    rng = np.random.default_rng(3)
+    local = _unit(rng, (6, 12, 16), np.float32)
+    atoms = _unit(rng, (10, 16), np.float64)
+    gram = atoms @ atoms.T
+    neighbours, codes, errors = code_local_patches(local, atoms, gram, 3, 1.0)
+    histogram = np.zeros((12, 10))
+    np.put_along_axis(histogram, neighbours[0], np.abs(codes[0]), axis=1)  # the first candidate is the template
+    threshold = np.median(errors)  # about half the local patches count as occluded
+    matched = match_local_histogram(local, atoms, gram, 3, 1.0, histogram, threshold)
+    for name, value in (("neighbours", neighbours), ("codes", codes), ("errors", errors)):
+        np.testing.assert_array_equal(matched[name], value)
+    overlap, n_occluded = _numpy_intersection(neighbours, codes, errors, histogram, threshold)
+    np.testing.assert_allclose(matched["overlap"], overlap, rtol=1e-12)
+    np.testing.assert_array_equal(matched["n_occluded"], n_occluded)
+    assert matched["overlap"][0] == pytest.approx(1.0) and 0 < n_occluded.sum() < errors.size
+    everything_occluded = match_local_histogram(local, atoms, gram, 3, 1.0, histogram, 0.0)
+    np.testing.assert_array_equal(everything_occluded["overlap"], 0.0)
+    np.testing.assert_array_equal(everything_occluded["n_occluded"], 12)
+    with pytest.raises(ParameterError, match="histogram"):
+        match_local_histogram(local, atoms, gram, 3, 1.0, histogram[:5], threshold)
 
 
 @pytest.mark.parametrize("change, message", [

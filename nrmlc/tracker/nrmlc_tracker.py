@@ -18,8 +18,9 @@ Per frame:
    confidence-weighted mean of the ``estimate_count`` most confident. If the best
    candidate's code uses no positive template, first re-detect (*ours*, ``redetect_count``):
    code a wider search around the previous estimate, whose candidates count only where
-   eps_pos < ``redetect_accept``. With ``generative_weight`` > 0 (*ours*, off by default),
-   log h also gains SCM's local-patch similarity (:mod:`nrmlc.tracker.generative`);
+   eps_pos < ``redetect_accept``. With ``generative_weight`` > 0 (*ours*, the default; 0
+   in the paper preset), log h also gains SCM's local-patch similarity
+   (:mod:`nrmlc.tracker.generative`);
 6. every ``update_interval`` frames, resample the negative templates around the
    estimate and, unless the target is judged occluded (LEN(neg*) too large),
    add the result to the positive templates when eps_pos* < threshold.
@@ -294,7 +295,8 @@ class NRMLCTracker:
         self.generative = None
         if p.generative_weight > 0:
             self.generative = LocalHistogramModel(self.rng, self.patches(frame, self.state[None, :])[0],
-                                                  p.patch_size, p.generative_neighbours, p.generative_lam)
+                                                  p.patch_size, p.generative_neighbours, p.generative_lam,
+                                                  p.generative_step)
         self.frame_index = 0
         self.last = None
 
@@ -312,9 +314,9 @@ class NRMLCTracker:
         if (self.frame_index + 1) % self.params.update_interval == 0:
             self._update_templates(frame, result)
         if self.generative is not None and (self.frame_index + 1) % self.params.generative_interval == 0:
-            coded, best = self.last_candidates, self.last_candidates["best"]
-            self.generative.update(coded["local_neighbours"][best], coded["local_codes"][best],
-                                   float(coded["occluded_share"][best]))
+            # Coded again alone: keeping every candidate's local codes cost more than this.
+            best = self.generative.similarity(self.last_candidates["patches"][self.last_candidates["best"]][None])
+            self.generative.update(best["neighbours"][0], best["codes"][0], float(best["occluded_share"][0]))
         return result.box
 
     def move_to(self, box) -> None:
@@ -440,23 +442,14 @@ class NRMLCTracker:
                     **extra)
 
     def _generative_similarity(self, candidates: np.ndarray, log_confidence: np.ndarray) -> dict:
-        """The generative term's similarity (``generative_weight``) of each candidate (n,):
-        the ``generative_candidates`` most confident are coded locally, the others get the
-        lowest of their similarities. Also each candidate's occluded share (n,) and its
-        local codes ``local_neighbours`` / ``local_codes`` (n, n_local, k), zero where not coded."""
+        """The generative term's ``similarity`` (n,) of each candidate: the
+        ``generative_candidates`` most confident are coded locally, the others get the
+        lowest of their similarities."""
         top = np.argsort(-log_confidence, kind="stable")[:self.params.generative_candidates]
-        local = self.generative.similarity(candidates[top])
-        n = len(candidates)
-        similarity = np.full(n, local["similarity"].min())
-        similarity[top] = local["similarity"]
-        occluded_share = np.ones(n)
-        occluded_share[top] = local["occluded_share"]
-        local_neighbours = np.zeros((n,) + local["neighbours"].shape[1:], dtype=np.int64)
-        local_neighbours[top] = local["neighbours"]
-        local_codes = np.zeros((n,) + local["codes"].shape[1:])
-        local_codes[top] = local["codes"]
-        return dict(similarity=similarity, occluded_share=occluded_share, local_neighbours=local_neighbours,
-                    local_codes=local_codes)
+        local = self.generative.similarity(candidates[top])["similarity"]
+        similarity = np.full(len(candidates), local.min())
+        similarity[top] = local
+        return dict(similarity=similarity)
 
     def _code(self, candidates, dots, gram, template_sq_norms, n_positive) -> tuple:
         """Algorithm 1 on the k_max nearest of the given templates, one parallel pass
@@ -477,12 +470,12 @@ class NRMLCTracker:
         candidates = self.patches(frame, states)
         coded = self.encode(candidates)
         n_local = len(states)
-        searched = (p.redetect_count > 0
-                    and coded["error_positive"][np.argmax(coded["log_confidence"])] >= REDETECT_TRIGGER)
+        best = int(np.argmax(coded["log_confidence"]))
+        searched = p.redetect_count > 0 and coded["error_positive"][best] >= REDETECT_TRIGGER
         if searched:
             states, candidates, coded = self._redetect(frame, states, candidates, coded)
+            best = int(np.argmax(coded["log_confidence"]))
         log_confidence = coded["log_confidence"]
-        best = int(np.argmax(log_confidence))
         self.particles = states
         self.log_weights = log_confidence
         n_pos = len(self.positive_templates)

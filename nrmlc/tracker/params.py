@@ -42,7 +42,9 @@ class TrackerParams:
     Attributes
     ----------
     n_particles : int
-        Particles per frame, N (paper: not given; the classic sparse trackers use 600).
+        Particles per frame, N (paper: not given; the classic sparse trackers use 600). *Ours*:
+        450, which with the generative term runs about as fast as 600 without it
+        (docs/FINDINGS.md, round 14).
     motion_sigmas : tuple of 6 float
         Std of the Gaussian motion model for ``[cx, cy, log scale, rotation rad,
         log aspect, skew rad]``; cx, cy in the unit ``translation_noise`` names (*ours*,
@@ -171,18 +173,24 @@ class TrackerParams:
         the similarity of the candidate's 6x6 local patches, coded on 50 atoms of the
         first frame, to a template histogram that stays 0.95 the first frame's, on the
         candidates whose code uses a positive template (:mod:`nrmlc.tracker.generative`,
-        which cites SCM's files). Off by default for its cost (docs/FINDINGS.md, round 13).
+        which cites SCM's files). *Ours*: 10, chosen on the development sequences
+        (docs/FINDINGS.md, rounds 13-14).
     generative_candidates : int
-        Only this many most confident candidates are coded locally (SCM codes all: 4x
-        the cost at 600 particles); the others get the lowest of their similarities.
+        Only this many most confident candidates are coded locally (SCM codes all); the
+        others get the lowest of their similarities. *Ours*: 20 (150 gained no more on the
+        development sequences at 7 times the term's cost; round 14).
     generative_neighbours, generative_lam : int, float
         The local coder: approximated LLC on this many nearest atoms with this ridge (SCM
         codes with a lasso).
     generative_interval : int
         The template histogram is updated every this many frames (SCM's ``demo.m``: 5).
+    generative_step : int
+        The candidates' local patches are cut every this many px (SCM's ``demo.m``: 2,
+        196 patches of a 32x32 patch). *Ours*: 4, 49 patches (round 14). The atoms always
+        come from the 2-px grid.
     """
 
-    n_particles: int = 600
+    n_particles: int = 450
     motion_sigmas: tuple = (2.0, 2.0, 0.01, 0.0, 0.005, 0.0)
     n_positive: int = 50
     n_negative: int = 150
@@ -218,11 +226,12 @@ class TrackerParams:
     redetect_count: int = 300
     redetect_factor: float = 4.0
     redetect_accept: float = 0.3
-    generative_weight: float = 0.0
-    generative_candidates: int = 150
+    generative_weight: float = 10.0
+    generative_candidates: int = 20
     generative_neighbours: int = 5
     generative_lam: float = 1.0
     generative_interval: int = 5
+    generative_step: int = 4
 
     def __post_init__(self) -> None:
         def fail(name: str, message: str) -> None:
@@ -233,7 +242,7 @@ class TrackerParams:
         object.__setattr__(self, "dictionary_sizes", tuple(int(v) for v in self.dictionary_sizes))
         for name in ("n_particles", "n_positive", "n_negative", "n_iterations", "update_interval",
                      "max_positive", "occlusion_max_negative", "patch_size", "estimate_count", "redetect_count",
-                     "generative_candidates", "generative_neighbours", "generative_interval"):
+                     "generative_candidates", "generative_neighbours", "generative_interval", "generative_step"):
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, int):
                 fail(name, f"must be an integer, got {value!r}")
@@ -296,11 +305,10 @@ class TrackerParams:
             fail("generative_neighbours", f"must be in 1..{N_ATOMS}, got {self.generative_neighbours}")
         if not 0 < self.generative_lam <= 1000:
             fail("generative_lam", f"must be in (0, 1000], got {self.generative_lam}")
-        if self.generative_weight > 0 and self.patch_size < LOCAL_SIZE:
-            fail("patch_size", f"must be >= {LOCAL_SIZE} (the local patches) when generative_weight > 0, "
-                               f"got {self.patch_size}")
         if self.generative_interval < 1:
             fail("generative_interval", f"must be >= 1, got {self.generative_interval}")
+        if not 1 <= self.generative_step <= LOCAL_SIZE:
+            fail("generative_step", f"must be in 1..{LOCAL_SIZE}, got {self.generative_step}")
         if not 1 <= self.estimate_count <= self.n_particles:
             fail("estimate_count", f"must be in 1..n_particles ({self.n_particles}), got {self.estimate_count}")
         if not 0 <= self.velocity_damping <= 1:
@@ -335,6 +343,9 @@ class TrackerParams:
             fail("coefficient_tolerance", f"must be >= 0, got {self.coefficient_tolerance}")
         if self.patch_size < 4:
             fail("patch_size", f"must be >= 4, got {self.patch_size}")
+        if self.generative_weight > 0 and self.patch_size < LOCAL_SIZE:
+            fail("patch_size", f"must be >= {LOCAL_SIZE} (the local patches) when generative_weight > 0, "
+                               f"got {self.patch_size}")
 
     @property
     def k_max(self) -> int:
@@ -371,14 +382,16 @@ class TrackerParams:
 #: Named configurations. 'default' is the tuned tracker (every value chosen on the
 #: development sequences, see the README). 'paper' is the paper as printed where it says
 #: something (Sec. 3's annulus templates, eq. (1)'s posterior propagation) with every
-#: extension beyond it switched off; the values it leaves unstated are the defaults'.
+#: extension beyond it switched off; the values it leaves unstated are the defaults', but
+#: for the particle count: the lineage's 600, since the default's smaller count only pays
+#: for the generative term, which the preset does not have.
 PRESETS: dict[str, dict] = {
     "default": {},
     "paper": dict(template_sampling="annulus", propagation="condensation", alpha=2.5,
                   patch_normalization="unit", dictionaries="joint", wide_share=0.0,
                   estimate_count=1, keep_initial_positives=False, velocity_damping=0.0,
                   antialias=0.0, update_interval=5, update_error_threshold=0.1, redetect_count=0,
-                  generative_weight=0.0),
+                  generative_weight=0.0, n_particles=600),
 }
 
 
