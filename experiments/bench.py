@@ -7,7 +7,8 @@ Writes ``bench.md`` (printed too) and ``bench.json`` (every number) to
 * **Stages of a frame** at 100, 600 and 1200 particles (Car4 when ``--data`` is
   given, else the synthetic sequence): the time each stage takes inside real
   ``update`` calls (warp, product, norms, nearest templates, coding, weights and
-  confidence, template updates, and the Python and numpy between them) against
+  confidence, the generative term's local coding, template updates, and the Python
+  and numpy between them) against
   its *floor*, the same call on the same inputs timed alone (median after a
   warm-up). A stage well above its floor loses time to its neighbours (caches,
   waking threads); the row "between the kernels" has no floor.
@@ -233,6 +234,7 @@ STAGES = {
     "combine_dictionaries": "weights + confidence",
     "code_candidates": "norms, nearest, coding, weights (one pass)",
     "template_gram": "template Gram",
+    "match_local_histogram": "generative term (local coding, histogram match)",
 }
 ONE_PASS_STAGE = STAGES["code_candidates"]
 TEMPLATE_STAGE = "template update (amortised)"
