@@ -54,6 +54,7 @@ from experiments.sequence_sets import paper_name
 from experiments.tables import fmt, mean_std, save_figure, write_csv
 from experiments.fig4_lambda_sweep import plain_params
 from nrmlc import io
+from nrmlc.tracker.generative import LOCAL_STEP
 
 STEM = "ablations"
 TITLE = "Ablations: constraint vs regularisation, every switch beyond the paper, and the values it leaves unstated"
@@ -77,6 +78,9 @@ METRICS = (("overlap", "mean overlap", 3), ("cle", "CLE (px)", 1), ("negative_sh
 #: which chose the defaults, is in docs/FINDINGS.md.
 TRIAL_VALUES = {"wide_share": 0.2, "estimate_count": 20, "velocity_damping": 0.5, "antialias": 0.5,
                 "negative_push": 0.5, "generative_weight": 10.0}
+
+#: Candidates coded by the generative term in round 13 (SCM's grid); its coding row compares them.
+ROUND13_CANDIDATES = 150
 
 #: Fields with a family of their own below (not repeated as switches).
 OWN_FAMILIES = ("coding", "confidence", "occlusion_detection")
@@ -165,11 +169,12 @@ def families(context) -> list[tuple[str, list[tuple[str, object]]]]:
         if field in fields and field not in differing and getattr(base, field) != value:
             out.append((field.replace("_", " "), [(f"{getattr(base, field):g} (default)", base),
                                                   (f"{value:g}", base.replace(**{field: value}))]))
-    if getattr(base, "generative_weight", 0) > 0 and (base.generative_step, base.generative_candidates) != (2, 150):
+    scm_coding = dict(generative_step=LOCAL_STEP, generative_candidates=ROUND13_CANDIDATES)
+    if getattr(base, "generative_weight", 0) > 0 and base.replace(**scm_coding) != base:
         # The default codes a coarser grid of fewer candidates than SCM, for speed (FINDINGS, round 14).
         out.append(("generative term's coding", [
             (f"every {base.generative_step} px, {base.generative_candidates} candidates (default)", base),
-            ("every 2 px (SCM's grid), 150 candidates", base.replace(generative_step=2, generative_candidates=150))]))
+            (f"every {LOCAL_STEP} px (SCM's grid), {ROUND13_CANDIDATES} candidates", base.replace(**scm_coding))]))
     if getattr(base, "template_sampling", "annulus") == "annulus":
         r, s = base.positive_radius, base.negative_radius
         out.append(("template radii", [(f"r = {r:g}, s = {s:g} (default)", base)]

@@ -35,6 +35,7 @@ import traceback
 from experiments import report
 from experiments.grid import add_arguments, context_from_namespace, run_script
 from nrmlc.errors import NrmlcError
+from nrmlc.tracker.generative import LOCAL_SIZE
 
 #: Every script, in the paper's order.
 SCRIPTS = (
@@ -103,7 +104,7 @@ def job_cost(job) -> float:
     if getattr(params, "generative_weight", 0) > 0:
         # Measured (FINDINGS, rounds 13-14): SCM's full grid (150 candidates x 196 local patches)
         # adds 2.6 frames' work, 20 x 49 adds 0.18.
-        n_local = ((params.patch_size - 6) // params.generative_step + 1) ** 2
+        n_local = ((params.patch_size - LOCAL_SIZE) // params.generative_step + 1) ** 2
         factor += 0.1 + 2.5 * params.generative_candidates * n_local / (150 * 196)
     if params.coding == "constrained":
         factor *= 1.3

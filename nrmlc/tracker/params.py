@@ -177,8 +177,8 @@ class TrackerParams:
         (docs/FINDINGS.md, rounds 13-14).
     generative_candidates : int
         Only this many most confident candidates are coded locally (SCM codes all); the
-        others get the lowest of their similarities. *Ours*: 20 (150 gained no more on the
-        development sequences at 7 times the term's cost; round 14).
+        others get the lowest of their similarities. *Ours*: 20 (150 did no better on the
+        development sequences and codes 7.5 times the local patches; round 14).
     generative_neighbours, generative_lam : int, float
         The local coder: approximated LLC on this many nearest atoms with this ridge (SCM
         codes with a lasso).
