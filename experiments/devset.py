@@ -19,8 +19,9 @@ It prints, per sequence, the mean overlap (over seeds) of the configuration, the
 baseline and each OpenCV tracker (MIL; KCF and CSRT with opencv-contrib), and the
 means over the sequences; then the paired difference configuration - baseline with its
 standard error over seeds (:func:`paired_difference`), for the real sequences and the
-synthetic suite apart: the numbers the adoption rule reads (docs/FINDINGS.md). ``--json
-PATH`` writes the same numbers.
+synthetic suite apart: the numbers the adoption rule reads (docs/FINDINGS.md), with the
+three single runs that changed most (:func:`largest_run_changes`). ``--json PATH`` writes
+the same numbers.
 """
 from __future__ import annotations
 
@@ -112,6 +113,20 @@ def paired_difference(config_runs: dict, baseline_runs: dict, names) -> dict:
             "up": int(np.sum(change > 0)), "down": int(np.sum(change < 0)), "n": len(names)}
 
 
+def largest_run_changes(config_runs: dict, baseline_runs: dict, names, seeds, count: int = 3) -> list:
+    """The ``count`` single runs (sequence, seed) whose overlap changed most, largest magnitude
+    first: a mean difference carried by one or two of them (a target kept or lost in one run)
+    is not a change of the tracker's behaviour.
+
+    Returns
+    -------
+    list of (sequence, seed, config - baseline) tuples
+    """
+    changes = [(name, seed, config_runs[name][i] - baseline_runs[name][i])
+               for name in names for i, seed in enumerate(seeds)]
+    return sorted(changes, key=lambda change: -abs(change[2]))[:count]
+
+
 def format_table(names, columns: dict) -> str:
     """Markdown table: one row per sequence plus the mean; ``columns`` maps a header to
     {sequence: value}."""
@@ -179,7 +194,8 @@ def main(argv=None) -> int:
         for label, group in (("development sequences", [n for n in order if n not in synthetic]),
                              ("synthetic suite", [n for n in order if n in synthetic])):
             if group:
-                differences[label] = paired_difference(config_runs, baseline_runs, group)
+                differences[label] = dict(paired_difference(config_runs, baseline_runs, group),
+                                          largest_runs=largest_run_changes(config_runs, baseline_runs, group, seeds))
     if not args.no_peers:
         for tracker, values in peer_overlaps(cache, sequences, args.max_frames, args.jobs).items():
             columns[f"{tracker} (OpenCV)"] = values
@@ -191,7 +207,8 @@ def main(argv=None) -> int:
         spread = (f"± {d['standard_error']:.3f} (paired by seed; standard error over {len(seeds)} seeds)"
                   if len(seeds) > 1 else "(one seed: no standard error)")
         print(f"config - baseline on the {label}: {d['mean']:+.3f} {spread}; {d['up']} of {d['n']} up, "
-              f"{d['down']} down")
+              f"{d['down']} down; the runs that changed most: "
+              + ", ".join(f"{name} seed {seed} {change:+.3f}" for name, seed, change in d["largest_runs"]))
     if args.json:
         io.write_json(args.json, {"config": config.as_dict(), "baseline": baseline.as_dict(), "seeds": seeds,
                                   "per_seed": config_runs, "baseline_per_seed": baseline_runs, "columns": columns,

@@ -29,6 +29,7 @@ def test_configuration_beside_its_baseline_on_the_synthetic_suite(tmp_path, caps
     assert set(numbers["columns"]) == {"config", "baseline"}
     # The paired difference, for the synthetic suite only (no real sequence was asked for).
     assert "config - baseline on the synthetic suite:" in table and "development sequences:" not in table
+    assert "the runs that changed most: synth-01 seed 0" in table
     assert set(numbers["differences"]) == {"synthetic suite"}
     difference = numbers["differences"]["synthetic suite"]
     assert difference["mean"] == pytest.approx(numbers["columns"]["config"]["synth-01"]
@@ -49,6 +50,11 @@ def test_paired_difference_by_hand():
     assert d["standard_error"] == pytest.approx(np.std([0.0, 0.15, 0.1], ddof=1) / np.sqrt(3))
     # a rose (0.6 against 0.4); b fell (0.2 against 0.2333).
     assert (d["up"], d["down"], d["n"]) == (1, 1, 2)
+    # The single runs that moved most: a at seed 1 (+0.3), then a at seed 2 (+0.2).
+    largest = devset.largest_run_changes(config, baseline, ["a", "b"], seeds=(0, 1, 2), count=2)
+    assert [(name, seed) for name, seed, _ in largest] == [("a", 1), ("a", 2)]
+    assert [change for _, _, change in largest] == pytest.approx([0.3, 0.2])
+    assert devset.largest_run_changes(config, baseline, ["b"], seeds=(0, 1, 2), count=1)[0][:2] == ("b", 0)
     assert np.isnan(devset.paired_difference({"a": [0.5]}, {"a": [0.4]}, ["a"])["standard_error"])
 
 
