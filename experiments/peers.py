@@ -5,8 +5,9 @@ Two sources of peer numbers, both scored with :mod:`nrmlc.metrics` against
 
 1. **Live OpenCV trackers** (:func:`live_trackers`): ``cv2.TrackerMIL`` always
    (OpenCV's re-implementation of Babenko's MIL), and ``TrackerKCF`` /
-   ``TrackerCSRT`` when the installed OpenCV has them (opencv-contrib). They
-   are deterministic, so one run per sequence; each run is cached like the
+   ``TrackerCSRT`` when the installed OpenCV has them (opencv-contrib). Each run
+   has a fresh process of its own (:func:`run_live`), which makes it
+   deterministic, so one run per sequence; each run is cached like the
    NRMLC runs (``<run cache>/peers/<key>.npz``, written atomically) with a key
    that hashes the tracker, the OpenCV version, the sequence and the frame
    count, so a rerun recomputes nothing and an OpenCV upgrade recomputes all.
@@ -24,7 +25,9 @@ Two sources of peer numbers, both scored with :mod:`nrmlc.metrics` against
 """
 from __future__ import annotations
 
+import multiprocessing
 import time
+from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import ClassVar
@@ -35,7 +38,7 @@ from experiments.sequence_sets import PAPER_NAME_OF, paper_name
 from nrmlc.runner import RunCache, description_key, frames_tracked, sequence_identity
 
 #: Bump when the live runner's behaviour changes (it is part of every key).
-LIVE_RUNNER_VERSION = 1
+LIVE_RUNNER_VERSION = 2
 
 #: OpenCV trackers tried, in column order (only the available ones are run).
 LIVE_CANDIDATES = ("MIL", "KCF", "CSRT")
@@ -143,12 +146,23 @@ def _to_cv_rect(box) -> tuple[int, int, int, int]:
 
 
 def run_live(spec: LiveSpec) -> dict:
-    """Run one OpenCV tracker over a sequence (in a worker process or in-process).
+    """Run one OpenCV tracker over a sequence, in a fresh process of its own.
+
+    OpenCV's MIL keeps random state from one tracker to the next within a process, and
+    ``cv2.setRNGSeed`` does not reset it: the second MIL run on a sequence in one process gave
+    other boxes than the first (Deer: up to 320 px apart), so a run's boxes depended on the
+    runs its worker had done before. The first run of a fresh process is the same every time.
 
     Returns
     -------
     dict of arrays: ``boxes`` (n, 4) 1-based, ``seconds_tracking`` scalar.
     """
+    with ProcessPoolExecutor(max_workers=1, mp_context=multiprocessing.get_context("spawn")) as pool:
+        return pool.submit(_run_live_here, spec).result()
+
+
+def _run_live_here(spec: LiveSpec) -> dict:
+    """:func:`run_live` in the calling process."""
     create = _factory(spec.tracker)
     if create is None:
         raise RuntimeError(f"OpenCV {opencv_version()} has no Tracker{spec.tracker}")
