@@ -38,7 +38,8 @@ import numpy as np
 from experiments.sequence_sets import PAPER_NAME_OF, paper_name
 from nrmlc.runner import RunCache, description_key, frames_tracked, sequence_identity
 
-#: Bump when the live runner's behaviour changes (it is part of every key).
+#: Bump when the live runner's behaviour changes (it is part of every key, as is each
+#: tracker's entry of :data:`LIVE_PARAMETERS`).
 LIVE_RUNNER_VERSION = 3
 
 #: OpenCV trackers tried, in column order (only the available ones are run).
@@ -78,10 +79,13 @@ def _factory(name: str):
 
 
 def _create(name: str):
-    """A new OpenCV tracker ``name`` with :data:`LIVE_PARAMETERS` applied."""
+    """A new OpenCV tracker ``name`` with :data:`LIVE_PARAMETERS` applied, or None if this
+    OpenCV has none."""
     import cv2
 
     create = _factory(name)
+    if create is None:
+        return None
     changes = LIVE_PARAMETERS.get(name)
     if not changes:
         return create()
@@ -126,6 +130,7 @@ class LiveSpec:
 
     def description(self, version: str | None = None) -> dict:
         return {"tracker": self.tracker, "opencv": opencv_version(), "runner": LIVE_RUNNER_VERSION,
+                "parameters": LIVE_PARAMETERS.get(self.tracker, {}),
                 "sequence": sequence_identity(self.sequence), "sequence_name": self.sequence.name,
                 "n_frames": self.n_frames}
 
@@ -188,11 +193,11 @@ def run_live(spec: LiveSpec) -> dict:
 
 def _run_live_here(spec: LiveSpec) -> dict:
     """:func:`run_live` in the calling process."""
-    if _factory(spec.tracker) is None:
+    tracker = _create(spec.tracker)
+    if tracker is None:
         raise RuntimeError(f"OpenCV {opencv_version()} has no Tracker{spec.tracker}")
     sequence = spec.sequence
     n = spec.frames()
-    tracker = _create(spec.tracker)
     boxes = np.full((n, 4), np.nan)
     init = sequence.init_box
     boxes[0] = init
