@@ -1,4 +1,4 @@
-"""Every relative link in the README and docs/ names a file that exists and, with a
+"""Every relative link in the README, docs/ and docs/findings/ names a file that exists and, with a
 ``#fragment``, a heading of that file (GitHub's anchor rule)."""
 from __future__ import annotations
 
@@ -8,7 +8,8 @@ from pathlib import Path
 import pytest
 
 ROOT = Path(__file__).resolve().parent.parent
-DOCUMENTS = [ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md"))]
+DOCUMENTS = [ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md")),
+             *sorted((ROOT / "docs" / "findings").glob("*.md"))]
 LINK = re.compile(r"\]\(([^)\s]+)\)")
 
 
