@@ -171,7 +171,8 @@ def families(context) -> list[tuple[str, list[tuple[str, object]]]]:
                                                   (f"{value:g}", base.replace(**{field: value}))]))
     scm_coding = dict(generative_step=LOCAL_STEP, generative_candidates=ROUND13_CANDIDATES)
     if getattr(base, "generative_weight", 0) > 0 and base.replace(**scm_coding) != base:
-        # The default codes a coarser grid of fewer candidates than SCM, for speed (FINDINGS, round 14).
+        # The default codes a coarser grid of fewer candidates than SCM, for speed
+        # (docs/findings/round-14-generative-term-adopted.md).
         out.append(("generative term's coding", [
             (f"every {base.generative_step} px, {base.generative_candidates} candidates (default)", base),
             (f"every {LOCAL_STEP} px (SCM's grid), {ROUND13_CANDIDATES} candidates", base.replace(**scm_coding))]))

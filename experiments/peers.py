@@ -50,8 +50,8 @@ LIVE_CANDIDATES = ("MIL", "KCF", "CSRT")
 #: which ``update`` reports a failure and neither moves the box nor learns. With OpenCV 5.0.0
 #: the peak was below 0.5 on 0.31 to 1.00 of the frames of the development sequences
 #: (Basketball from frame 1, Couple 0.97), so the default KCF stayed where it started: 0.094
-#: mean overlap there, 0.353 with the threshold 0 (measured 2026-12-01; docs/FINDINGS.md,
-#: "OpenCV's KCF and CSRT in the same harness").
+#: mean overlap there, 0.353 with the threshold 0 (measured 2026-12-01;
+#: docs/findings/opencv-kcf-csrt.md).
 LIVE_PARAMETERS = {"KCF": {"detect_thresh": 0.0}}
 
 #: Shipped result folders, and the subfolders holding other versions of sequences.

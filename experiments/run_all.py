@@ -102,8 +102,8 @@ def job_cost(job) -> float:
         return job.frames() * ESTIMATE_FPS_PER_WORKER / ESTIMATE_PEER_FPS
     factor = params.n_particles / 600.0
     if getattr(params, "generative_weight", 0) > 0:
-        # Measured (FINDINGS, rounds 13-14): SCM's full grid (150 candidates x 196 local patches)
-        # adds 2.6 frames' work, 20 x 49 adds 0.18.
+        # Measured (docs/findings/round-13-generative-term.md and round-14-generative-term-adopted.md):
+        # SCM's full grid (150 candidates x 196 local patches) adds 2.6 frames' work, 20 x 49 adds 0.18.
         n_local = ((params.patch_size - LOCAL_SIZE) // params.generative_step + 1) ** 2
         factor += 0.1 + 2.5 * params.generative_candidates * n_local / (150 * 196)
     if params.coding == "constrained":
