@@ -1,4 +1,4 @@
-"""Failure mechanisms (issue 11, section 3): how often each one occurs, per sequence, for the
+"""Failure mechanisms: how often each one occurs, per sequence, for the
 default tracker and the paper preset.
 
 Per run (frame 0, the given box, excluded throughout):

@@ -14,6 +14,7 @@ import re
 import signal
 import sys
 import warnings
+from pathlib import Path
 
 
 def _cmd_evaluate(args: argparse.Namespace) -> int:
@@ -120,9 +121,16 @@ def _join_negative_values(argv: list[str]) -> list[str]:
 _VALUE_OPTIONS: set[str] = set()
 
 
+def invoked_name() -> str:
+    """The command as the user typed it, for the usage line: ``nrmlc`` (the installed script),
+    or ``python -m nrmlc``."""
+    script = Path(sys.argv[0]).name if sys.argv and sys.argv[0] else ""
+    return "python -m nrmlc" if script in ("__main__.py", "-m", "-c", "") else script
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
-        prog="python -m nrmlc",
+        prog=invoked_name(),
         description="NRMLC visual tracker: track sequences, evaluate results (OTB one-pass evaluation).",
     )
     parser.add_argument("--debug", action="store_true", help="show tracebacks instead of one-line errors")

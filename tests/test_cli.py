@@ -210,7 +210,7 @@ BAD_INPUT = {
                                                        "--groundtruth", "{seq}/groundtruth_rect.txt"],
                                  r"groundtruth_rect\.txt:2: expected 4 numbers"),
     "list-missing-root": (_nothing, ["list", "{seq}/nowhere"], r"nowhere: data root not found"),
-    # second round (issue 12)
+    # second round of the reliability checks
     "track-a-data-root": (_nothing, ["track", "{seq}/.."], r"no 'img' folder with the frames; it looks like a data "
                                                            r"root: give one sequence folder, e\.g\. \S*Seq"),
     "list-a-sequence": (_nothing, ["list", "{seq}"], r"Seq: no sequences .*; it is itself a sequence folder"),
@@ -404,3 +404,12 @@ def test_track_preset_paper_changes_the_parameters_and_options_still_apply(seq, 
     with pytest.raises(SystemExit) as stop:
         main(["track", str(seq), "--out", str(out), "--preset", "nope"])
     assert stop.value.code == 2 and "argument --preset: invalid choice: 'nope'" in capsys.readouterr().err
+
+
+def test_the_usage_line_names_the_command_as_invoked(tmp_path):
+    script = Path(sys.executable).parent / "nrmlc"
+    if not script.exists():
+        pytest.skip("the nrmlc script is not installed beside this Python")
+    for command, name in (([str(script)], "usage: nrmlc "), ([sys.executable, "-m", "nrmlc"], "usage: python -m nrmlc ")):
+        done = subprocess.run(command + ["track"], capture_output=True, text=True, cwd=tmp_path)
+        assert done.returncode == 2 and done.stderr.startswith(name), done.stderr

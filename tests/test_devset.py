@@ -23,7 +23,7 @@ def test_configuration_beside_its_baseline_on_the_synthetic_suite(tmp_path, caps
             "--baseline-param", "n_particles=60", "--baseline-param", "alpha=2.5", "--json", str(out)]
     assert devset.main(argv) == 0
     table = capsys.readouterr().out
-    assert "| synth-01 |" in table and "baseline" in table and "**mean**" in table
+    assert "| synth-01 |" in table and "baseline" in table and "**mean, synthetic suite (1)**" in table
     numbers = json.loads(out.read_text())
     assert numbers["config"]["alpha"] == 25.0 and numbers["baseline"]["alpha"] == 2.5
     assert set(numbers["columns"]) == {"config", "baseline"}
@@ -61,3 +61,124 @@ def test_paired_difference_by_hand():
 def test_a_paper_sequence_is_refused_as_a_development_sequence(capsys):
     assert devset.main(["--sequences", "Car4", "--no-peers"]) == 2
     assert "not development sequences: Car4" in capsys.readouterr().err
+
+
+def _difference(mean, error, n_seeds=3):
+    return {"mean": mean, "standard_error": error, "per_seed": [mean] * n_seeds}
+
+
+def test_the_adoption_rule_reads_both_halves_and_the_synthetic_suite():
+    gain = _difference(0.02, 0.005)
+    assert devset.adopted({"A": gain, "B": _difference(0.001, 0.01)})[0]
+    assert devset.adopted({"A": gain, "B": gain, "synthetic suite": _difference(-0.004, 0.005)})[0]
+    refusals = {
+        "A: +0.004 is not beyond": {"A": _difference(0.004, 0.005), "B": gain},
+        "B: -0.001 is not a gain": {"A": gain, "B": _difference(-0.001, 0.001)},
+        "synthetic suite: -0.010": {"A": gain, "B": gain, "synthetic suite": _difference(-0.01, 0.005)},
+        "needs at least 3 seeds": {"A": _difference(0.02, 0.005, 2), "B": gain},
+        "needs both halves": {"A": gain},
+    }
+    for why, differences in refusals.items():
+        verdict = devset.adopted(differences)
+        assert not verdict[0] and why in verdict[1], (why, verdict)
+
+
+def test_table_marks_missing_values_and_compares_like_with_like():
+    groups = {"A": ["a1", "a2"], "B": ["b1"]}
+    columns = {"config": {"a1": 0.5, "a2": 0.7, "b1": 0.4}, "ASLA": {"a1": 0.3, "b1": 0.2}}
+    text = devset.format_table(groups, columns)
+    assert "| a2 | 0.700 | - |" in text
+    # ASLA has one of half A's two targets: its mean there, and config's on the same target.
+    assert "| **mean, half A (2)** | **0.600** | **0.300** (1; config 0.500) |" in text
+    assert "| **mean, all real (3)** | **0.533** | **0.250** (2; config 0.450) |" in text
+
+
+def test_sequences_come_from_several_roots(tmp_path):
+    from nrmlc.data import synthetic_suite, write_otb_sequence
+
+    first, second = tmp_path / "one", tmp_path / "two"
+    suite = synthetic_suite(n_frames=4, n_sequences=2)
+    write_otb_sequence(suite[0], first / "synth-01")
+    for sequence in suite:
+        write_otb_sequence(sequence, second / sequence.name)
+    roots = devset.parse_roots(f"{first}:{second}")
+    found = devset.development_sequences(roots, ["synth-01", "synth-02"], 0)
+    # synth-01 from the first root that has it, synth-02 from the second.
+    assert [s.path.parent for s in found] == [first, second]
+    with pytest.raises(NrmlcError, match="not found: synth-09"):
+        devset.development_sequences(roots, ["synth-09"], 0)
+    with pytest.raises(NrmlcError, match="--data: .*nowhere is not a folder"):
+        devset.parse_roots(str(tmp_path / "nowhere"))
+
+
+def test_screen_gives_each_variant_its_paired_differences_and_verdict(tmp_path, capsys):
+    from experiments import screen
+
+    out = tmp_path / "screen.json"
+    argv = ["--data", str(tmp_path), "--seeds", "0", "--synthetic", "1", "--jobs", "1",
+            "--cache", str(tmp_path / "cache"), "--baseline", "n_particles=60,generative_weight=0",
+            "--variant", "low_alpha", "n_particles=60,generative_weight=0,alpha=2.5",
+            "--variant", "same", "n_particles=60,generative_weight=0", "--json", str(out)]
+    # Every development target is asked for by default: none is in an empty root.
+    assert screen.main(argv) == 2
+    assert "no sequences" in capsys.readouterr().err
+    assert screen.main(argv + ["--sequences", "", "--max-frames", "8"]) == 0
+    text = capsys.readouterr().out
+    assert "| low_alpha |" in text and "| same | - | - | +0.000 ± nan (0↑ 0↓) | - | 0, 0 |" in text
+    numbers = json.loads(out.read_text())
+    low = numbers["variants"][0]
+    assert low["params"]["alpha"] == 2.5 and not low["adopted"] and low["why"] == "needs both halves"
+    assert low["differences"]["synthetic suite"]["mean"] == pytest.approx(
+        low["per_seed"]["synth-01"][0] - numbers["baseline_per_seed"]["synth-01"][0])
+
+
+def test_screen_variant_syntax():
+    from experiments import screen
+
+    params = screen.parse_variant("v", "motion_sigmas=[4,4,0.01,0,0.005,0],alpha=3", "default")
+    assert params.motion_sigmas == (4.0, 4.0, 0.01, 0.0, 0.005, 0.0) and params.alpha == 3.0
+    assert screen.parse_variant("p", "preset:paper", "default") == devset.TrackerParams.paper()
+    with pytest.raises(NrmlcError, match="unknown parameter"):
+        screen.parse_variant("v", "alhpa=3", "default")
+
+
+def test_the_committed_split_keeps_videos_together_and_halves_balanced():
+    from experiments import development_split
+    from experiments.sequence_sets import (DEVELOPMENT_A, DEVELOPMENT_B, DEVELOPMENT_SEQUENCES,
+                                           FIRST_DEVELOPMENT)
+
+    assert sorted(DEVELOPMENT_A + DEVELOPMENT_B) == sorted(DEVELOPMENT_SEQUENCES)
+    assert len(DEVELOPMENT_A) == len(DEVELOPMENT_B) == 18 and len(set(DEVELOPMENT_SEQUENCES)) == 36
+    assert len(set(FIRST_DEVELOPMENT) & set(DEVELOPMENT_A)) == 6
+    for pair in development_split.SAME_VIDEO:
+        assert set(pair) <= set(DEVELOPMENT_A) or set(pair) <= set(DEVELOPMENT_B)
+
+
+def test_balanced_split_by_hand():
+    from experiments import development_split
+
+    targets = list(development_split.FIRST_TARGETS) + [f"t{i}" for i in range(6)]
+    difficulty = np.arange(len(targets), dtype=float)
+    flags = np.zeros((len(targets), 11))
+    half_a, half_b = development_split.balanced_split(targets, difficulty, flags, draws=300, seed=1)
+    assert len(half_a) == len(half_b) == 9
+    assert {"Jogging-1", "Jogging-2"} <= set(half_a) or {"Jogging-1", "Jogging-2"} <= set(half_b)
+    in_a = np.isin(targets, half_a)
+    # 300 draws find halves whose mean difficulty is within a tenth of a spread.
+    assert development_split.split_cost(in_a, difficulty, flags) < 0.1
+
+
+def test_tracked_scale_is_the_median_over_the_last_quarter():
+    class Truth:
+        """Just what score() and tracked_scale() read of a sequence."""
+        name = "t"
+        groundtruth = np.tile([10.0, 10.0, 20.0, 20.0], (9, 1))
+
+        def __len__(self):
+            return 9
+
+    boxes = np.tile([10.0, 10.0, 20.0, 20.0], (9, 1))
+    boxes[7:] = [10.0, 10.0, 10.0, 10.0]  # the last two of the 8 scored frames at half the size
+    assert devset.tracked_scale(boxes, Truth()) == pytest.approx(0.5)
+    assert devset.tracked_scale(boxes, Truth(), share=1.0) == pytest.approx(1.0)
+    assert devset.collapsed({"t": [0.5, 0.6, 0.9], "u": [0.8, 0.9, 0.5]}, ["t", "u"]) == ["t"]

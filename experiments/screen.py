@@ -1,0 +1,145 @@
+"""Screen many configurations against one baseline on both development halves at once.
+
+``python -m experiments.screen --seeds 0-2 --synthetic 6 --variant NAME PARAM=VALUE[,PARAM=VALUE...] ...``
+
+The baseline's runs, then each variant's, go through the run cache (longest run first within
+each, so both cores stay busy; a rerun computes only what is missing). For each variant
+it prints the paired difference to the baseline (:func:`experiments.devset.paired_difference`)
+on half A, half B and the synthetic suite, and the adoption rule's verdict
+(:func:`experiments.devset.adopted`); ``--json`` writes the same with every run's overlap,
+``--markdown`` the table.
+"""
+from __future__ import annotations
+
+import argparse
+import sys
+
+import numpy as np
+
+from experiments.devset import (adopted, collapsed, development_sequences, differences_by_group, groups_of,
+                                parse_roots, score, selected_names, tracked_scale)
+from experiments.grid import specs_for
+from nrmlc import io
+from nrmlc.benchmark import parse_seeds
+from nrmlc.data.synthetic import SyntheticSequence
+from nrmlc.errors import NrmlcError
+from nrmlc.runner import DEFAULT_CACHE, RunCache
+from nrmlc.tracker.params import TrackerParams, parse_param_assignment
+
+
+def parse_variant(name: str, text: str, base_preset: str) -> TrackerParams:
+    """``PARAM=VALUE,PARAM=VALUE`` (a tuple value keeps its commas inside brackets: ``motion_sigmas=[4,4,0.01,0,0.005,0]``)
+    or ``preset:NAME`` -> the parameters of variant ``name``."""
+    if text.startswith("preset:"):
+        return TrackerParams.preset(text.split(":", 1)[1])
+    parts, depth, current = [], 0, ""
+    for char in text:
+        depth += char == "["
+        depth -= char == "]"
+        if char == "," and depth == 0:
+            parts.append(current)
+            current = ""
+        else:
+            current += char
+    parts.append(current)
+    changes = dict(parse_param_assignment(part.replace("[", "").replace("]", "")) for part in parts if part.strip())
+    try:
+        return TrackerParams.preset(base_preset, **changes)
+    except NrmlcError as error:
+        raise NrmlcError(f"--variant {name}: {error}") from None
+
+
+def per_seed_overlaps(results, specs) -> tuple[dict, dict]:
+    """({sequence: [mean overlap of each seed]}, {sequence: [tracked scale of each seed]}) of
+    one configuration's runs (:func:`experiments.devset.tracked_scale`)."""
+    overlaps: dict = {}
+    scales: dict = {}
+    for spec, result in zip(specs, results):
+        overlaps.setdefault(spec.sequence.name, []).append(float(score(result.boxes, spec.sequence).mean_overlap))
+        scales.setdefault(spec.sequence.name, []).append(tracked_scale(result.boxes, spec.sequence))
+    return overlaps, scales
+
+
+def format_screen(rows: list[dict]) -> str:
+    """Markdown: one row per variant, the paired differences on A, B, the synthetic suite, the verdict."""
+    lines = ["| variant | half A | half B | synthetic suite | all real | collapsed (A, B) | verdict |",
+             "|---|---|---|---|---|---|---|"]
+
+    def cell(d):
+        return "-" if d is None else f"{d['mean']:+.3f} ± {d['standard_error']:.3f} ({d['up']}↑ {d['down']}↓)"
+
+    for row in rows:
+        d = row["differences"]
+        lines.append(f"| {row['name']} | {cell(d.get('A'))} | {cell(d.get('B'))} | "
+                     f"{cell(d.get('synthetic suite'))} | {cell(d.get('all real'))} | "
+                     f"{len(row['collapsed'].get('A', []))}, {len(row['collapsed'].get('B', []))} | "
+                     f"{'ADOPT' if row['adopted'] else 'no'}: {row['why']} |")
+    return "\n".join(lines)
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--data", default=None, help="data root(s) joined by ':' (as experiments.devset)")
+    parser.add_argument("--seeds", default="0-2")
+    parser.add_argument("--synthetic", type=int, default=6, metavar="N")
+    parser.add_argument("--half", choices=("A", "B", "all"), default="all")
+    parser.add_argument("--sequences", default=None, help="a subset of the development targets ('': none)")
+    parser.add_argument("--max-frames", type=int, default=None, help="track only the first N frames")
+    parser.add_argument("--baseline-preset", default="default")
+    parser.add_argument("--baseline", default="", metavar="PARAM=VALUE,...", help="changes of the baseline")
+    parser.add_argument("--variant", nargs=2, action="append", default=[], metavar=("NAME", "CHANGES"))
+    parser.add_argument("--jobs", type=int, default=None)
+    parser.add_argument("--cache", default=str(DEFAULT_CACHE))
+    parser.add_argument("--json", default=None)
+    parser.add_argument("--markdown", default=None)
+    args = parser.parse_args(argv)
+    try:
+        seeds = parse_seeds(args.seeds)
+        baseline = parse_variant("baseline", args.baseline, args.baseline_preset)
+        variants = [(name, parse_variant(name, text, args.baseline_preset)) for name, text in args.variant]
+        names = selected_names(args.half, args.sequences)
+        sequences = development_sequences(parse_roots(args.data) if names else None, names, args.synthetic)
+    except NrmlcError as error:
+        print(f"error: {error}", file=sys.stderr)
+        return 2
+    cache = RunCache(args.cache)
+    order = [s.name for s in sequences]
+    groups = groups_of(order, {s.name for s in sequences if isinstance(s, SyntheticSequence)})
+    real = [n for label, names in groups.items() if label != "synthetic suite" for n in names]
+    if real:
+        groups["all real"] = real
+    batches = [specs_for(sequences, params, seeds, n_frames=args.max_frames) for _, params in [("baseline", baseline)] + variants]
+    # One configuration at a time (the baseline first), so that an interrupted screen has
+    # finished whole configurations, which a rerun reads from the cache.
+    runs = [per_seed_overlaps(cache.run(batch, jobs=args.jobs), batch) for batch in batches]
+    rows = []
+    halves = {label: names for label, names in groups.items() if label in ("A", "B")}
+
+    def collapsed_by_half(scales):
+        return {label: collapsed(scales, names) for label, names in halves.items()}
+
+    for (name, params), (variant_runs, scales) in zip(variants, runs[1:]):
+        differences = differences_by_group(variant_runs, runs[0][0], groups, seeds)
+        verdict = adopted(differences)
+        rows.append({"name": name, "params": params.as_dict(), "differences": differences,
+                     "adopted": verdict[0], "why": verdict[1], "per_seed": variant_runs, "scales": scales,
+                     "collapsed": collapsed_by_half(scales)})
+    means = {label: float(np.mean([np.mean(runs[0][0][n]) for n in names])) for label, names in groups.items()}
+    base_collapsed = collapsed_by_half(runs[0][1])
+    print(f"baseline: preset {args.baseline_preset} {args.baseline or ''}; seeds {args.seeds}; mean overlap "
+          + ", ".join(f"{label} {value:.3f}" for label, value in means.items())
+          + "; collapsed (scale < 0.7 over the last quarter): "
+          + "; ".join(f"{label} {', '.join(names) or 'none'}" for label, names in base_collapsed.items()))
+    table = format_screen(rows)
+    print(table)
+    if args.markdown:
+        io.write_text(args.markdown, table + "\n")
+    if args.json:
+        io.write_json(args.json, {"baseline": baseline.as_dict(), "baseline_per_seed": runs[0][0],
+                                  "baseline_scales": runs[0][1], "baseline_collapsed": base_collapsed,
+                                  "seeds": seeds, "groups": groups, "baseline_means": means, "variants": rows})
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
