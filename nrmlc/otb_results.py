@@ -79,7 +79,7 @@ def sequence_key(name: str) -> str:
     """
     name = str(name).strip().lower()
     match = _TARGET.match(name)
-    return f"{match.group(1)}-{int(match.group(2))}" if match else name
+    return f"{match.group(1)}-{match.group(2)}" if match else name
 
 
 def split_result_name(stem: str) -> tuple[str, str] | None:
