@@ -45,8 +45,9 @@ def plot_speed(comparison, path) -> tuple[Path, list[str]]:
         label = tracker.name
         if summary["fps_sequences"] < summary["sequences"]:
             label += f" (fps of {summary['fps_sequences']}/{summary['sequences']})"
+        # Alternate above and below: trackers of one family often sit side by side.
         axis.annotate(label, (tracker.fps, summary["success_auc"]), textcoords="offset points",
-                      xytext=(5, 4), fontsize=8)
+                      xytext=(5, 4 if i % 2 == 0 else -11), fontsize=8)
     axis.set_xscale("log")
     n = len(comparison.sequences)
     axis.set(xlabel="frames per second (log scale; as recorded with each tracker's results)",
