@@ -8,7 +8,6 @@ from __future__ import annotations
 
 import argparse
 import functools
-import json
 import os
 import re
 import signal
@@ -18,38 +17,11 @@ from pathlib import Path
 
 
 def _cmd_evaluate(args: argparse.Namespace) -> int:
-    from nrmlc.data import read_box_file
-    from nrmlc.errors import ParameterError
-    from nrmlc.metrics import evaluate_files
+    from nrmlc.compare import run_evaluate_file, run_evaluate_folders
 
     if args.data is not None:  # result folders of any number of trackers (nrmlc/compare.py)
-        from nrmlc.compare import run_evaluate_folders
-
         return run_evaluate_folders(args)
-    if args.groundtruth is None or len(args.results) != 1:
-        raise ParameterError("evaluate: give one --results R.txt with --groundtruth G.txt, "
-                             "or result folders with --data DATA")
-    args.results = args.results[0]
-
-    n_predicted = len(read_box_file(args.results, predictions=True))
-    n_annotated = len(read_box_file(args.groundtruth))
-    if n_annotated < n_predicted:
-        warnings.warn(f"{args.groundtruth}: {n_annotated} ground-truth boxes for {n_predicted} result boxes; "
-                      f"only the first {n_annotated} frames are evaluated")
-    elif n_predicted < n_annotated:
-        warnings.warn(f"{args.results}: {n_predicted} result boxes for {n_annotated} ground-truth boxes; "
-                      f"the annotated frames after frame {n_predicted} count as failures")
-    result = evaluate_files(args.results, args.groundtruth, skip_first=not args.include_first)
-    summary = result.as_dict()
-    if args.json:
-        print(json.dumps(summary, indent=2))
-    else:
-        print(f"frames evaluated : {result.n_frames} ({result.n_missing} missing predictions)")
-        print(f"mean CLE         : {result.mean_center_error:.2f} px")
-        print(f"mean overlap     : {result.mean_overlap:.4f}")
-        print(f"success AUC      : {result.success_auc:.4f}")
-        print(f"precision@20     : {result.precision_20:.4f}")
-    return 0
+    return run_evaluate_file(args)
 
 
 def _cmd_list(args: argparse.Namespace) -> int:
@@ -139,7 +111,8 @@ def build_parser() -> argparse.ArgumentParser:
     evaluate = commands.add_parser("evaluate", help="score a result file, or several trackers' result folders, against "
                                    "ground truth (CLE, overlap, AUC, precision@20; OTB plots)")
     evaluate.add_argument("--results", required=True, nargs="+", metavar="R.txt|DIR",
-                          help="tracker boxes, one x,y,w,h line per frame; with --data, result folders")
+                          help="tracker boxes, one x,y,w,h line per frame (or an OTB <Seq>_<Tracker>.mat file); "
+                               "with --data, result folders (DIR, or DIR:A,B for some trackers of a .mat folder)")
     evaluate.add_argument("--groundtruth", metavar="G.txt", help="ground-truth boxes (OTB groundtruth_rect.txt)")
     evaluate.add_argument("--json", action="store_true", help="print the summary as JSON")
     evaluate.add_argument("--include-first", action="store_true", help="also score frame 1 (the given box)")

@@ -177,7 +177,8 @@ def _same_file(a: os.stat_result, b: os.stat_result) -> bool:
 
 
 def check_output(path: str | os.PathLike, option: str, inputs: Iterable[str | os.PathLike] = (),
-                 input_folders: Iterable[str | os.PathLike] = ()) -> Path:
+                 input_folders: Iterable[str | os.PathLike] = (),
+                 folder_role: str = "holds this run's input frames") -> Path:
     """Refuse an output path before any work is done.
 
     Parameters
@@ -188,6 +189,7 @@ def check_output(path: str | os.PathLike, option: str, inputs: Iterable[str | os
         be one of them, whatever the path (links and hard links included).
     input_folders : folders the run reads every file of (the frames'
         folder): the output must not go inside them.
+    folder_role : what such a folder is, for the message.
 
     Returns
     -------
@@ -238,8 +240,7 @@ def check_output(path: str | os.PathLike, option: str, inputs: Iterable[str | os
     for folder in input_folders:
         folder = _target(folder)
         if folder == target.parent or folder in target.parents:
-            raise ParameterError(f"{where}: is inside {folder}, which holds this run's input frames; "
-                                 f"write it elsewhere")
+            raise ParameterError(f"{where}: is inside {folder}, which {folder_role}; write it elsewhere")
     # The nearest existing folder decides whether the missing ones can be created.
     folder = target.parent
     while not folder.exists() and folder != folder.parent:

@@ -290,6 +290,9 @@ def test_evaluate_compares_folders_with_plots(data_root, two_trackers, tmp_path,
     assert code == 0, err
     assert plot.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and plot.stat().st_size > 10_000
     lines = out.splitlines()
+    # The benchmark folder's manifest says what was run; the first line says what was scored.
+    assert lines[0] == ("scored: 2 sequences (those run in the benchmark.json of NRMLC), all frames; NRMLC seed 0, "
+                        "the other trackers their one result per sequence")
     nrmlc_row = next(line for line in lines if line.startswith("NRMLC "))
     other_row = next(line for line in lines if line.startswith("Shifted "))
     assert "2/2" in nrmlc_row and "1/2" in other_row
