@@ -35,9 +35,16 @@ MORE_DEVELOPMENT = ("Bird1", "BlurBody", "BlurCar2", "BlurFace", "BlurOwl", "Boy
 #: Development sequences: choose here, report on :data:`PAPER_SEQUENCES`.
 DEVELOPMENT_SEQUENCES = FIRST_DEVELOPMENT + MORE_DEVELOPMENT
 
-#: The choosing half (screen here) and the confirming half (a change must also gain here).
-DEVELOPMENT_A: tuple = ()
-DEVELOPMENT_B: tuple = ()
+#: The choosing half (screen here) and the confirming half (a change must also gain here), drawn
+#: once on 2026-12-01 before any screening on the 36 by ``python -m experiments.development_split
+#: --peers PEERS.json --attributes otb_attributes --draws 20000 --seed 0``: the three OpenCV peers'
+#: mean overlap 0.354 (A) and 0.364 (B); attribute counts within one of each other (IV 6 / 5,
+#: SV 11 / 12, OCC 9 / 10, FM 9 / 8, ...); 6 of the first 12 targets in each.
+DEVELOPMENT_A = ("Bird1", "BlurFace", "Boy", "Car1", "Crossing", "Dog", "DragonBaby", "Fish", "Football",
+                 "Football1", "Girl", "KiteSurf", "Lemming", "MotorRolling", "Skating2-1", "Skating2-2", "Skiing",
+                 "Subway")
+DEVELOPMENT_B = ("Basketball", "BlurBody", "BlurCar2", "BlurOwl", "Car11", "Couple", "Diving", "Freeman1", "Ironman",
+                 "Jogging-1", "Jogging-2", "Liquor", "Man", "Matrix", "Singer2", "Suv", "Toy", "Walking2")
 
 #: The rule every default is adopted by (:func:`experiments.devset.adopted` applies it).
 ADOPTION_RULE = ("a change is adopted only when its paired gain over at least 3 seeds exceeds its standard "

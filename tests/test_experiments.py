@@ -232,7 +232,7 @@ def test_capped_table_marks_the_full_sequence_paper_numbers():
 def test_sequence_sets():
     from experiments.sequence_sets import DEVELOPMENT_SEQUENCES, PAPER_SEQUENCES, paper_name
 
-    assert len(PAPER_SEQUENCES) == 9 and len(DEVELOPMENT_SEQUENCES) == 12
+    assert len(PAPER_SEQUENCES) == 9 and len(DEVELOPMENT_SEQUENCES) == 36
     assert not set(PAPER_SEQUENCES) & set(DEVELOPMENT_SEQUENCES)
     assert all(paper_name(name) in paper_numbers.SEQUENCES for name in PAPER_SEQUENCES)
     assert [paper_name(n) for n in PAPER_SEQUENCES] == [n for n in paper_numbers.SEQUENCES
