@@ -142,6 +142,19 @@ def select_sequences(data_root, names: list[str] | None = None) -> list:
     return list({by_name[n.lower()].name: by_name[n.lower()] for n in names}.values())
 
 
+def _check_out_beside_inputs(out: Path, sequences) -> None:
+    """Refuse an ``--out`` that is a sequence folder or inside one: its ``<Seq>.txt`` files would
+    join that sequence (a sequence named ``groundtruth_rect`` would even replace its ground truth)."""
+    target = Path(os.path.realpath(out))
+    for sequence in sequences:
+        if sequence.path is None:
+            continue
+        folder = Path(os.path.realpath(sequence.path))
+        if target == folder or folder in target.parents:
+            raise ParameterError(f"--out {out}: is inside the sequence folder {sequence.path}; write the results "
+                                 f"elsewhere")
+
+
 def result_file(out: Path, name: str, seed: int, primary_seed: int) -> Path:
     """Where the boxes of ``name`` with ``seed`` go (top level for the primary seed)."""
     folder = out if seed == primary_seed else out / SEEDS_FOLDER / str(seed)
@@ -320,6 +333,7 @@ def run_benchmark(data_root, out, params=None, seeds=(0,), sequences: list[str] 
     if not usable:
         raise DataError(f"{data_root}: no sequence with a ground-truth box on frame 1 to start from")
     chosen = usable
+    _check_out_beside_inputs(out, chosen)
     settings = json.loads(json.dumps({"params": params.as_dict(), "max_frames": max_frames,
                                       "data": str(data_root.resolve())}, default=str))
     with _locked(out):

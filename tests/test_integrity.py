@@ -611,3 +611,45 @@ def test_two_threads_on_one_tracker_get_a_clear_error():
     worker.join()
     tracker.step = real_step
     tracker.update(sequence.frame(2))  # free again
+
+
+# =================================================================== found beyond the issue
+def test_benchmark_out_inside_a_sequence_folder_is_refused(tmp_path, capsys):
+    data = tmp_path / "S"
+    write_otb_sequence(synthetic_suite(n_frames=4, size=(48, 64), n_sequences=1)[0], data / "synth-01")
+    for out in (data / "synth-01", data / "synth-01" / "img" / "R"):
+        code, _, err = run_main(["benchmark", data, "--out", out, "--cache", tmp_path / "C"], capsys)
+        assert code == 2 and f"--out {out}: is inside the sequence folder" in err, err
+    assert sorted(p.name for p in (data / "synth-01").iterdir()) == ["groundtruth_rect.txt", "img"]
+
+
+def test_huge_box_file_is_refused_before_it_is_read(tmp_path, monkeypatch):
+    import nrmlc.data.boxes as boxes
+
+    path = tmp_path / "groundtruth_rect.txt"
+    path.write_text("1,2,3,4\n" * 200)
+    monkeypatch.setattr(boxes, "MAX_BOX_FILE_BYTES", 1000)
+    with pytest.raises(DataError, match=r"groundtruth_rect\.txt: 0 MB is not a box file"):
+        read_box_file(path)
+
+
+def test_a_sequence_that_renders_its_own_frames_keeps_its_name_in_the_key():
+    from nrmlc.data import Sequence
+
+    class Rendered(Sequence):
+        def _read_image(self, index):
+            return np.full((20, 20), 10 * index, np.uint8)
+
+    a = Rendered("a", None, np.tile([1.0, 1, 5, 5], (3, 1)), n_frames=3)
+    b = Rendered("b", None, np.tile([1.0, 1, 5, 5], (3, 1)), n_frames=3)
+    assert a.identity != b.identity and a.identity.startswith("Rendered:a:3:sha256=")
+
+
+def test_synth_does_not_replace_a_symlinked_sequence_folder(tmp_path, capsys):
+    target = tmp_path / "real"
+    target.mkdir()
+    (tmp_path / "S").mkdir()
+    (tmp_path / "S" / "synth-01").symlink_to(target)
+    code, _, err = run_main(["synth", "--out", tmp_path / "S", "--frames", "4", "--count", "1"], capsys)
+    assert code == 2 and "synth-01: is a symbolic link" in err, err
+    assert (tmp_path / "S" / "synth-01").is_symlink()

@@ -133,8 +133,15 @@ class Sequence:
         return identity
 
     def _content_identity(self) -> str:
+        if self.image_paths is None:
+            # A subclass that renders its own frames and does not say what they are: its class
+            # and name stand in for the frames (as before content keys), never a bare digest of
+            # the ground truth that another such sequence could share.
+            digest = hashlib.sha256()
+            self._hash_groundtruth(digest)
+            return f"{type(self).__name__}:{self.name}:{len(self)}:sha256={digest.hexdigest()[:32]}"
         digest = hashlib.sha256()
-        for path in self.image_paths or []:
+        for path in self.image_paths:
             digest.update(_digest_of(path).encode())
         self._hash_groundtruth(digest)
         return f"frames:{len(self)}:sha256={digest.hexdigest()[:32]}"

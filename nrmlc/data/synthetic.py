@@ -506,7 +506,10 @@ def check_otb_destination(folder: str | os.PathLike, n_frames: int) -> None:
     folder = Path(folder)
     if not os.path.lexists(folder):
         return
-    if folder.is_symlink() or not folder.is_dir():
+    if folder.is_symlink():
+        raise DataError(f"{folder}: is a symbolic link (it would be replaced by a folder); write to its target "
+                        f"or choose another --out")
+    if not folder.is_dir():
         raise DataError(f"{folder}: exists and is not a folder; choose another --out")
     image_folder = folder / IMAGE_FOLDER
     ours = {f"{index + 1:04d}.png" for index in range(n_frames)}
