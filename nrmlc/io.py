@@ -357,8 +357,10 @@ def check_output(path: str | os.PathLike, option: str, inputs: Iterable[str | os
         fd, probe = tempfile.mkstemp(prefix=_prefix(target.name), dir=folder)
     except OSError as exc:
         raise ParameterError(f"{where}: cannot write to folder {folder} ({exc.strerror or exc})") from None
-    os.close(fd)
-    os.unlink(probe)
+    try:
+        os.close(fd)
+    finally:
+        os.unlink(probe)  # even if an interrupt lands here
     return Path(text)
 
 

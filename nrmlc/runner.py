@@ -89,7 +89,8 @@ def code_version() -> str:
 
 def sequence_identity(sequence) -> str:
     """A string naming the sequence's content: :attr:`nrmlc.data.Sequence.identity`
-    (its folder or its synthetic spec, plus an overridden initial box)."""
+    (a digest of its frames' bytes and its ground truth, or its synthetic spec, plus an
+    overridden initial box)."""
     return sequence.identity
 
 

@@ -72,8 +72,12 @@ class BoxVideoWriter:
         self.sequence = sequence
         height, width = sequence.frame_size
         self.tmp_path = io.temporary_for(path)
-        with _quiet_stderr():
-            self.writer = cv2.VideoWriter(str(self.tmp_path), cv2.VideoWriter_fourcc(*"mp4v"), fps, (width, height))
+        try:
+            with _quiet_stderr():
+                self.writer = cv2.VideoWriter(str(self.tmp_path), cv2.VideoWriter_fourcc(*"mp4v"), fps, (width, height))
+        except BaseException:
+            io.discard(self.tmp_path)
+            raise
         if not self.writer.isOpened():
             io.discard(self.tmp_path)
             raise ParameterError(f"--video {path}: cannot open a video writer (mp4v)")

@@ -70,8 +70,12 @@ def drop_stale_cache(folder: Path = _KERNELS, cache: Path | None = None) -> bool
     try:
         cache.mkdir(parents=True, exist_ok=True)
         temporary = cache / f".{STAMP_NAME}.{os.getpid()}"
-        temporary.write_text(digest)
-        os.replace(temporary, stamp)
+        try:
+            temporary.write_text(digest)
+            os.replace(temporary, stamp)
+        finally:
+            if temporary.exists():  # a failed write or an interrupt: no stray file
+                temporary.unlink()
     except OSError:
         pass  # a read-only install: numba will not cache there either
     return dropped
