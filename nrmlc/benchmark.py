@@ -16,10 +16,19 @@ the first seed of the first invocation is the *primary* seed stored there, and
 it stays so on later invocations.
 
 Resuming: a run is finished when its entry is in ``benchmark.json`` and its
-result file exists; a rerun skips it, whatever changed in the code since.
+result file holds one box per tracked frame; a rerun skips it, whatever
+changed in the code since (an entry whose file is missing or of another
+length is run again, with a warning naming the file).
 The runs themselves go through :class:`nrmlc.runner.RunCache` (``--cache``,
 default ``.cache/runs``), so a run interrupted before its file was written
 is loaded from the cache, not recomputed. All files are written atomically.
+
+Several invocations may write one folder at once (``--sequences A`` and
+``--sequences B`` started together): every read-modify-write of
+``benchmark.json`` happens under an exclusive lock on ``.benchmark.lock`` in
+the folder (``flock``), and each run's entry is merged into the manifest as
+it is on disk, so none loses the other's runs; the summary is written from
+the merged manifest.
 
 Nothing the user has is overwritten: an existing folder with ``.txt`` files
 but no ``benchmark.json`` is refused, and so is a folder made with other
@@ -29,10 +38,13 @@ tracker parameters, another frame cap or another data root (choose another
 from __future__ import annotations
 
 import argparse
+import contextlib
 import csv
 import io as text_io
 import json
 import math
+import numbers
+import os
 import re
 import sys
 import warnings
@@ -47,6 +59,8 @@ MANIFEST_NAME = "benchmark.json"
 SUMMARY_CSV = "summary.csv"
 SUMMARY_JSON = "summary.json"
 SEEDS_FOLDER = "seeds"
+#: Held (flock) around every read-modify-write of the manifest; stays in the folder.
+LOCK_NAME = ".benchmark.lock"
 #: Per-run scores, in the order of the summary columns.
 SCORE_FIELDS = ("mean_overlap", "mean_center_error", "success_auc", "precision_20")
 _RANGE = re.compile(r"^(\d+)-(\d+)$")
@@ -83,6 +97,13 @@ def parse_names(text: str | None) -> list[str] | None:
     return names
 
 
+def _check_name(name: str, data_root) -> None:
+    """A ``--sequences`` entry names a sequence of the data root, never a path elsewhere."""
+    if not isinstance(name, str) or not name or name in (".", "..") or "/" in name or os.sep in name \
+            or (os.altsep and os.altsep in name) or "\0" in name:
+        raise ParameterError(f"--sequences {name!r}: give the name of a sequence of {data_root}, not a path")
+
+
 def select_sequences(data_root, names: list[str] | None = None) -> list:
     """The sequences of ``data_root`` (all, or those named, in the order given; case-insensitive).
 
@@ -92,8 +113,11 @@ def select_sequences(data_root, names: list[str] | None = None) -> list:
         For a name that is not a sequence of the root (the message lists them).
     """
     from nrmlc.data import list_sequences, open_sequence
+    from nrmlc.data.otb import check_unique_names
 
     if names is not None:
+        for name in names:
+            _check_name(name, data_root)
         # Open only the named folders (the others' warnings are not this run's business) ...
         chosen = {}
         for name in names:
@@ -101,8 +125,11 @@ def select_sequences(data_root, names: list[str] | None = None) -> list:
                 sequence = open_sequence(Path(data_root) / name)
             except DataError:
                 break  # ... unless a name is not a folder as written: then look it up below
+            if sequence.name.lower() != name.lower():
+                break  # a multi-target folder ("Jog" is Jog-1): the full listing finds every collision
             chosen.setdefault(sequence.name, sequence)
         else:
+            check_unique_names(list(chosen.values()), data_root)
             return list(chosen.values())
     sequences = list_sequences(data_root)
     if names is None:
@@ -115,10 +142,88 @@ def select_sequences(data_root, names: list[str] | None = None) -> list:
     return list({by_name[n.lower()].name: by_name[n.lower()] for n in names}.values())
 
 
+def _check_out_beside_inputs(out: Path, sequences) -> None:
+    """Refuse an ``--out`` that is a sequence folder or inside one: its ``<Seq>.txt`` files would
+    join that sequence (a sequence named ``groundtruth_rect`` would even replace its ground truth)."""
+    target = Path(os.path.realpath(out))
+    for sequence in sequences:
+        if sequence.path is None:
+            continue
+        folder = Path(os.path.realpath(sequence.path))
+        if target == folder or folder in target.parents:
+            raise ParameterError(f"--out {out}: is inside the sequence folder {sequence.path}; write the results "
+                                 f"elsewhere")
+
+
 def result_file(out: Path, name: str, seed: int, primary_seed: int) -> Path:
     """Where the boxes of ``name`` with ``seed`` go (top level for the primary seed)."""
     folder = out if seed == primary_seed else out / SEEDS_FOLDER / str(seed)
     return folder / f"{name}.txt"
+
+
+def _number_or_none(value) -> bool:
+    return value is None or (isinstance(value, numbers.Real) and not isinstance(value, bool))
+
+
+def check_manifest(manifest, path) -> dict:
+    """Refuse a ``benchmark.json`` of the wrong shape (valid JSON, wrong types) with one line naming it.
+
+    Returns
+    -------
+    dict
+        ``manifest``, with ``runs`` added when it was absent.
+    """
+    def fail(what: str):
+        raise DataError(f"{path}: not a benchmark manifest ({what}); repair or remove it, or choose another --out")
+
+    if not isinstance(manifest, dict):
+        fail(f"a JSON {type(manifest).__name__}, not an object")
+    if not isinstance(manifest.get("settings"), dict):
+        fail("no 'settings' object")
+    if not isinstance(manifest["settings"].get("params", {}), dict):
+        fail("'settings.params' is not an object")
+    primary = manifest.get("primary_seed")
+    if primary is not None and (isinstance(primary, bool) or not isinstance(primary, int) or primary < 0):
+        fail(f"'primary_seed' must be a seed or null, got {primary!r}")
+    runs = manifest.setdefault("runs", {})
+    if not isinstance(runs, dict):
+        fail("'runs' is not an object")
+    for name, seeds in runs.items():
+        if not isinstance(seeds, dict):
+            fail(f"runs[{name!r}] is not an object")
+        for seed, entry in seeds.items():
+            where = f"runs[{name!r}][{seed!r}]"
+            if not (seed.isdigit() and seed.isascii()):
+                fail(f"{where}: the key is not a seed")
+            if not isinstance(entry, dict):
+                fail(f"{where} is not an object")
+            frames = entry.get("frames")
+            if isinstance(frames, bool) or not isinstance(frames, int) or frames < 1:
+                fail(f"{where}.frames must be a positive integer, got {frames!r}")
+            if not _number_or_none(entry.get("fps")):
+                fail(f"{where}.fps must be a number or null, got {entry.get('fps')!r}")
+            scores = entry.get("scores")
+            if scores is not None and (not isinstance(scores, dict)
+                                       or not all(_number_or_none(v) for v in scores.values())):
+                fail(f"{where}.scores must be an object of numbers or null")
+    return manifest
+
+
+@contextlib.contextmanager
+def _locked(out: Path):
+    """Hold the folder's lock (exclusive ``flock`` on :data:`LOCK_NAME`): one writer of the manifest at a time."""
+    try:
+        import fcntl
+    except ImportError:  # not POSIX: no lock (one invocation per folder at a time)
+        yield
+        return
+    out.mkdir(parents=True, exist_ok=True)
+    fd = os.open(out / LOCK_NAME, os.O_RDWR | os.O_CREAT, 0o666)
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX)
+        yield
+    finally:
+        os.close(fd)  # releases the lock
 
 
 def _read_manifest(out: Path, settings: dict) -> dict:
@@ -127,9 +232,10 @@ def _read_manifest(out: Path, settings: dict) -> dict:
     if path.is_file():
         try:
             manifest = json.loads(path.read_text())
-            stored = manifest["settings"]
-        except (ValueError, KeyError, TypeError) as exc:
+        except (ValueError, OSError) as exc:
             raise DataError(f"{path}: not a benchmark manifest ({exc})") from None
+        check_manifest(manifest, path)
+        stored = manifest["settings"]
         details = []
         for key in sorted(set(stored) | set(settings)):
             old, new = stored.get(key), settings.get(key)
@@ -143,7 +249,6 @@ def _read_manifest(out: Path, settings: dict) -> dict:
         if details:
             raise DataError(f"{out}: made with other settings ({'; '.join(details)}); "
                             f"choose another --out to keep both")
-        manifest.setdefault("runs", {})
         return manifest
     if out.exists() and not out.is_dir():
         raise DataError(f"{out}: exists and is not a folder")
@@ -198,14 +303,21 @@ def run_benchmark(data_root, out, params=None, seeds=(0,), sequences: list[str] 
     summary : dict
         What ``summary.json`` holds.
     """
-    from nrmlc.runner import RunCache, RunSpec, code_version
+    from nrmlc.data import read_box_file
+    from nrmlc.runner import RunCache, RunSpec, code_version, frames_tracked
     from nrmlc.tracker.params import TrackerParams
 
     log = log or (lambda line: print(line, file=sys.stderr, flush=True))
+    from nrmlc.runner import _count
+
     params = TrackerParams() if params is None else params
-    if max_frames is not None and max_frames < 2:
-        raise ParameterError(f"--max-frames must be >= 2, got {max_frames}")
-    seeds = tuple(int(s) for s in seeds)
+    if not isinstance(params, TrackerParams):
+        raise ParameterError(f"run_benchmark: params must be a TrackerParams, got {type(params).__name__}")
+    if max_frames is not None:
+        max_frames = _count("--max-frames", max_frames, 2)
+    seeds = tuple(_count("seed", s, 0) for s in seeds)
+    if not seeds:
+        raise ParameterError("run_benchmark: no seed given")
     out = Path(out)
     data_root = Path(data_root)
     io.check_output(out / MANIFEST_NAME, "--out")
@@ -221,18 +333,43 @@ def run_benchmark(data_root, out, params=None, seeds=(0,), sequences: list[str] 
     if not usable:
         raise DataError(f"{data_root}: no sequence with a ground-truth box on frame 1 to start from")
     chosen = usable
-    settings = {"params": params.as_dict(), "max_frames": max_frames, "data": str(data_root.resolve())}
-    manifest = _read_manifest(out, json.loads(json.dumps(settings, default=str)))
-    if manifest["primary_seed"] is None:
-        manifest["primary_seed"] = seeds[0]
+    _check_out_beside_inputs(out, chosen)
+    settings = json.loads(json.dumps({"params": params.as_dict(), "max_frames": max_frames,
+                                      "data": str(data_root.resolve())}, default=str))
+    with _locked(out):
+        # Settled under the lock, and written at once: a second invocation started alongside
+        # sees this one's settings and primary seed.
+        manifest = _read_manifest(out, settings)
+        if manifest["primary_seed"] is None:
+            manifest["primary_seed"] = seeds[0]
+            io.write_json(out / MANIFEST_NAME, manifest)
     primary = int(manifest["primary_seed"])
-    runs = manifest["runs"]
 
-    def finished(name: str, seed: int) -> bool:
-        return str(seed) in runs.get(name, {}) and result_file(out, name, seed, primary).is_file()
+    def finished(sequence, seed: int) -> bool:
+        entry = manifest["runs"].get(sequence.name, {}).get(str(seed))
+        if entry is None:
+            return False
+        path = result_file(out, sequence.name, seed, primary)
+        expected = frames_tracked(sequence, max_frames)
+        problem = None
+        if not path.is_file():
+            problem = "missing"
+        elif entry["frames"] != expected:
+            problem = f"its manifest entry says {entry['frames']} frames, the run tracks {expected}"
+        else:
+            try:
+                rows = len(read_box_file(path, predictions=True))
+            except DataError as exc:
+                problem = str(exc)
+            else:
+                if rows != expected:
+                    problem = f"{rows} boxes for {expected} frames"
+        if problem is not None:
+            warnings.warn(f"{path}: not a finished result ({problem}); running it again")
+        return problem is None
 
     todo = [RunSpec(s, params, seed, max_frames, label=s.name) for s in chosen for seed in seeds
-            if not finished(s.name, seed)]
+            if not finished(s, seed)]
     total = len(chosen) * len(seeds)
     log(f"benchmark: {len(chosen)} sequences x {len(seeds)} seeds -> {out}: "
         f"{total - len(todo)} finished, {len(todo)} to run")
@@ -242,15 +379,19 @@ def run_benchmark(data_root, out, params=None, seeds=(0,), sequences: list[str] 
 
         def record(spec, result) -> None:
             name = spec.sequence.name
-            io.write_boxes(result_file(out, name, spec.seed, primary), result.boxes)
-            runs.setdefault(name, {})[str(spec.seed)] = {
+            entry = {
                 "frames": int(len(result.boxes)),
                 "fps": None if math.isnan(result.fps_tracking) else float(result.fps_tracking),
                 "scores": _scores(result.boxes, spec.sequence),
                 "code_version": version,
             }
-            # The file first, then its entry: an entry always has its file.
-            io.write_json(out / MANIFEST_NAME, manifest)
+            with _locked(out):
+                # Merged into the manifest as it is now: another invocation may have added runs.
+                current = _read_manifest(out, settings)
+                # The file first, then its entry: an entry always has its file.
+                io.write_boxes(result_file(out, name, spec.seed, primary), result.boxes)
+                current["runs"].setdefault(name, {})[str(spec.seed)] = entry
+                io.write_json(out / MANIFEST_NAME, current)
 
         try:
             results = cache.run(todo, executor=executor, jobs=jobs, progress=progress)
@@ -265,8 +406,11 @@ def run_benchmark(data_root, out, params=None, seeds=(0,), sequences: list[str] 
             raise
         for spec, result in zip(todo, results):
             record(spec, result)
-    summary = summarize(manifest)
-    write_summary(out, summary)
+    with _locked(out):
+        # From the manifest on disk: it holds the runs of every invocation into this folder.
+        manifest = _read_manifest(out, settings)
+        summary = summarize(manifest)
+        write_summary(out, summary)
     log(f"results: {out}/<Seq>.txt" + (f", {out / SEEDS_FOLDER}/<seed>/<Seq>.txt" if len(set(seeds) | {primary}) > 1
                                         or (out / SEEDS_FOLDER).is_dir() else "")
         + f"; scores: {out / SUMMARY_CSV}, {out / SUMMARY_JSON}")

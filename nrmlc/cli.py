@@ -35,10 +35,16 @@ def _cmd_list(args: argparse.Namespace) -> int:
 
 
 def _cmd_synth(args: argparse.Namespace) -> int:
-    from nrmlc.data import synthetic_suite, write_otb_sequence
-    from nrmlc.data.synthetic import MAX_FRAMES, MAX_SEQUENCES
+    """Write the suite one sequence at a time (each all or nothing), after every check: a folder
+    that is not an earlier synthetic sequence, too little memory or disk refuse the whole command
+    before anything is written."""
+    import cv2
+
+    from nrmlc.data import SyntheticSequence, write_otb_sequence
+    from nrmlc.data.synthetic import MAX_FRAMES, MAX_SEQUENCES, check_otb_destination, suite_specs
     from nrmlc.errors import ParameterError
     from nrmlc.io import check_output
+    from nrmlc.resources import available_memory, free_disk, gigabytes
 
     for option, value, low, high in (("--count", args.count, 1, MAX_SEQUENCES), ("--frames", args.frames, 2, MAX_FRAMES),
                                      ("--seed", args.seed, 0, 2**63 - 1)):
@@ -46,9 +52,27 @@ def _cmd_synth(args: argparse.Namespace) -> int:
             raise ParameterError(f"{option} must be in {low}..{high}, got {value}")
     # The folder must be creatable and writable; probe it with a file name inside it.
     check_output(os.path.join(args.out, "groundtruth_rect.txt"), "--out")
-    for sequence in synthetic_suite(n_frames=args.frames, n_sequences=args.count, seed=args.seed):
-        folder = write_otb_sequence(sequence, f"{args.out}/{sequence.name}")
+    specs = suite_specs(n_frames=args.frames, n_sequences=args.count, seed=args.seed)
+    for spec in specs:
+        check_otb_destination(os.path.join(args.out, spec.name), spec.n_frames)
+    memory = available_memory()
+    if memory is not None and specs[0].estimated_bytes() > memory:
+        raise ParameterError(f"--frames {args.frames}: a sequence needs about {gigabytes(specs[0].estimated_bytes())} "
+                             f"of memory, {gigabytes(memory)} is available")
+    first = SyntheticSequence(specs[0])
+    # PNG of the first frame, with a margin: the frames of a suite compress alike.
+    frame_bytes = 1.25 * len(cv2.imencode(".png", first.raw_frame(0))[1]) + 4096
+    need = frame_bytes * args.frames * args.count
+    free = free_disk(args.out)
+    if free is not None and need > free:
+        raise ParameterError(f"--out {args.out}: {args.count} x {args.frames} frames need about {gigabytes(need)}, "
+                             f"{gigabytes(free)} is free there; nothing was written")
+    for index, spec in enumerate(specs):
+        sequence = first if index == 0 else SyntheticSequence(spec)
+        folder = write_otb_sequence(sequence, os.path.join(args.out, spec.name))
         print(folder)
+        del sequence
+        first = None  # one sequence in memory at a time
     return 0
 
 
@@ -151,8 +175,9 @@ def main(argv: list[str] | None = None) -> int:
     # so that calling main() from Python does not change the caller's formatting.
     format_warning = warnings.formatwarning
     warnings.formatwarning = lambda message, category, *rest: f"warning: {message}\n"
-    # SIGTERM ends a run like Ctrl-C: outputs in progress are dropped, earlier files kept. Both
-    # also set interrupt_requested, in case the KeyboardInterrupt lands in a finaliser.
+    # SIGTERM and SIGHUP (the terminal closed, an ssh session lost) end a run like Ctrl-C: outputs
+    # in progress are dropped, their temporary files removed, earlier files kept. All three also
+    # set interrupt_requested, in case the KeyboardInterrupt lands in a finaliser.
     from nrmlc.errors import interrupt_requested
 
     interrupt_requested.clear()
@@ -161,6 +186,8 @@ def main(argv: list[str] | None = None) -> int:
     previous = {}
     if threading_main():
         previous[signal.SIGTERM] = signal.signal(signal.SIGTERM, _terminate)
+        if hasattr(signal, "SIGHUP") and signal.getsignal(signal.SIGHUP) is signal.SIG_DFL:  # not under nohup
+            previous[signal.SIGHUP] = signal.signal(signal.SIGHUP, _terminate)
         if signal.getsignal(signal.SIGINT) is signal.default_int_handler:  # not where SIGINT is ignored
             previous[signal.SIGINT] = signal.signal(signal.SIGINT, _terminate)
     try:

@@ -118,12 +118,13 @@ def run_track(args: argparse.Namespace) -> int:
     check_outputs(args, sequence)
     writer = None
     on_frame = None
-    if args.video:
-        from nrmlc.video import BoxVideoWriter
-
-        writer = BoxVideoWriter(args.video, sequence)
-        on_frame = writer.on_frame
     try:
+        if args.video:
+            from nrmlc.video import BoxVideoWriter
+
+            # Inside the try: an interrupt right after its temporary file exists still removes it.
+            writer = BoxVideoWriter(args.video, sequence)
+            on_frame = writer.on_frame
         result = track_sequence(sequence, params, seed=args.seed, n_frames=args.frames, init_box=init_box,
                                 progress=True, on_frame=on_frame)
         if interrupt_requested.is_set():

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import threading
 
-#: Set by the CLI's SIGINT / SIGTERM handler. A KeyboardInterrupt that lands while Python runs a
+#: Set by the CLI's SIGINT / SIGTERM / SIGHUP handler. A KeyboardInterrupt that lands while Python runs a
 #: finaliser (a ``__del__``, e.g. llvmlite's) is printed and dropped, so the CLI also checks this
 #: before it commits any output.
 interrupt_requested = threading.Event()
@@ -24,3 +24,7 @@ class DataError(NrmlcError):
 
 class ParameterError(NrmlcError, ValueError):
     """A tracker or CLI parameter is out of range or malformed."""
+
+
+class OutputError(NrmlcError, OSError):
+    """An output cannot be written completely (a full disk, a lost permission); nothing was replaced."""

@@ -16,10 +16,13 @@ another non-regular file, and must not be one of the run's inputs.
 """
 from __future__ import annotations
 
+import contextlib
 import errno
 import json
 import math
 import os
+import secrets
+import signal
 import stat
 import tempfile
 import threading
@@ -28,7 +31,7 @@ from typing import Any, Callable, Iterable
 
 import numpy as np
 
-from nrmlc.errors import ParameterError
+from nrmlc.errors import OutputError, ParameterError
 
 _umask_lock = threading.Lock()
 
@@ -80,12 +83,37 @@ def temporary_for(path: str | os.PathLike) -> Path:
     return Path(tmp)
 
 
+def _cannot_write(path: str | os.PathLike, exc: OSError) -> OutputError:
+    return OutputError(f"{os.fspath(path)}: cannot write ({exc.strerror or exc}); the earlier file, if any, is kept")
+
+
+def _fsync_file(tmp: str | os.PathLike, path: str | os.PathLike) -> None:
+    # A full disk may only show here (delayed allocation): before anything is renamed.
+    try:
+        with open(tmp, "rb") as handle:
+            os.fsync(handle.fileno())
+    except OSError as exc:
+        raise _cannot_write(path, exc) from None
+
+
 def commit(tmp: str | os.PathLike, path: str | os.PathLike) -> Path:
-    """fsync the finished temporary file ``tmp`` and rename it over ``path``'s target."""
-    with open(tmp, "rb") as handle:
-        os.fsync(handle.fileno())
-    target = _target(path)
-    os.replace(tmp, target)
+    """fsync the finished temporary file ``tmp`` and rename it over ``path``'s target.
+
+    Raises
+    ------
+    OutputError
+        If it cannot be written or renamed (the message names ``path``); ``tmp`` is removed.
+    """
+    try:
+        _fsync_file(tmp, path)
+        target = _target(path)
+        try:
+            os.replace(tmp, target)
+        except OSError as exc:
+            raise _cannot_write(path, exc) from None
+    except BaseException:
+        discard(tmp)
+        raise
     _fsync_folder(target.parent)
     return Path(path)
 
@@ -101,15 +129,23 @@ def discard(tmp: str | os.PathLike) -> None:
 def _stage(path: str | os.PathLike, write: Callable[[Any], None], mode: str) -> Path:
     """Write and fsync a uniquely named temporary file beside ``path``'s target; return its path."""
     target = _target(path)
-    target.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=_prefix(target.name), dir=target.parent)
-    # mkstemp creates 0600 files; give results the usual umask-based permissions.
-    os.chmod(tmp, 0o666 & ~_current_umask())
     try:
+        target.parent.mkdir(parents=True, exist_ok=True)
+        fd, tmp = tempfile.mkstemp(prefix=_prefix(target.name), dir=target.parent)
+    except OSError as exc:
+        raise _cannot_write(path, exc) from None
+    try:
+        # mkstemp creates 0600 files; give results the usual umask-based permissions.
+        os.chmod(tmp, 0o666 & ~_current_umask())
         with os.fdopen(fd, mode) as handle:
             write(handle)
             handle.flush()
             os.fsync(handle.fileno())
+    except OSError as exc:  # a full disk, a quota: named, and nothing replaced
+        discard(tmp)
+        if isinstance(exc, OutputError):
+            raise
+        raise _cannot_write(path, exc) from None
     except BaseException:
         discard(tmp)
         raise
@@ -121,11 +157,47 @@ def _atomic(path: str | os.PathLike, write: Callable[[Any], None], mode: str) ->
     target = _target(path)
     try:
         os.replace(tmp, target)
+    except OSError as exc:
+        discard(tmp)
+        raise _cannot_write(path, exc) from None
     except BaseException:
         discard(tmp)
         raise
     _fsync_folder(target.parent)
     return Path(path)
+
+
+def _keep_old(target: Path) -> Path | None:
+    """A hard link to ``target``'s current file beside it (None: no file there, or no hard links
+    on this file system), so that a rename over it can be undone."""
+    if not target.is_file():
+        return None
+    for _ in range(100):
+        backup = target.parent / f"{_prefix(target.name)}old-{secrets.token_hex(4)}"
+        try:
+            os.link(target, backup)
+            return backup
+        except FileExistsError:
+            continue
+        except OSError:
+            return None
+    return None
+
+
+@contextlib.contextmanager
+def _signals_held():
+    """Hold SIGINT, SIGTERM and SIGHUP back (delivered after the block), so that a group of
+    renames is never cut in the middle by an interrupt."""
+    held = {signal.SIGINT, signal.SIGTERM, getattr(signal, "SIGHUP", signal.SIGTERM)}
+    try:
+        previous = signal.pthread_sigmask(signal.SIG_BLOCK, held)
+    except (AttributeError, OSError, ValueError):
+        yield
+        return
+    try:
+        yield
+    finally:
+        signal.pthread_sigmask(signal.SIG_SETMASK, previous)
 
 
 class Together:
@@ -135,6 +207,14 @@ class Together:
     block normally renames every one of them over its target, leaving it with
     an exception removes them all, so a run that fails while writing its
     second output (a full disk) does not leave its first one replaced.
+
+    The renames are all or nothing too: every temporary file is fsynced
+    first (where a full disk may show), the old file at each target is kept
+    as a hard link beside it, and if one rename fails the ones before it are
+    undone from those links (a target that did not exist is removed again);
+    SIGINT, SIGTERM and SIGHUP are held back while the renames run. Only on a
+    file system without hard links can a failed later rename leave an
+    earlier target replaced.
     """
 
     def __init__(self) -> None:
@@ -162,14 +242,41 @@ class Together:
             for tmp, _ in pending:
                 discard(tmp)
             return False
-        for done, (tmp, path) in enumerate(pending):
-            try:
-                commit(tmp, path)
-            except BaseException:
-                for later, _ in pending[done:]:
-                    discard(later)
-                raise
+        backups: list[Path | None] = []
+        try:
+            for tmp, path in pending:
+                _fsync_file(tmp, path)
+            with _signals_held():
+                targets = [_target(path) for _, path in pending]
+                existed = [target.exists() for target in targets]
+                backups = [_keep_old(target) for target in targets]
+                for done, ((tmp, path), target) in enumerate(zip(pending, targets)):
+                    try:
+                        os.replace(tmp, target)
+                    except OSError as exc:
+                        for earlier in range(done):
+                            _undo(targets[earlier], existed[earlier], backups[earlier])
+                        raise _cannot_write(path, exc) from None
+        finally:
+            for tmp, _ in pending:
+                discard(tmp)  # already renamed: nothing there
+            for backup in backups:
+                if backup is not None:
+                    discard(backup)
+        for folder in {target.parent for target in targets}:
+            _fsync_folder(folder)
         return False
+
+
+def _undo(target: Path, existed: bool, backup: Path | None) -> None:
+    """Put back the file a rename replaced (or remove the new one where there was none)."""
+    try:
+        if backup is not None:
+            os.replace(backup, target)
+        elif not existed:
+            os.unlink(target)
+    except OSError:
+        pass  # best effort: the error that started this is the one reported
 
 
 def _same_file(a: os.stat_result, b: os.stat_result) -> bool:
@@ -251,8 +358,10 @@ def check_output(path: str | os.PathLike, option: str, inputs: Iterable[str | os
         fd, probe = tempfile.mkstemp(prefix=_prefix(target.name), dir=folder)
     except OSError as exc:
         raise ParameterError(f"{where}: cannot write to folder {folder} ({exc.strerror or exc})") from None
-    os.close(fd)
-    os.unlink(probe)
+    try:
+        os.close(fd)
+    finally:
+        os.unlink(probe)  # even if an interrupt lands here
     return Path(text)
 
 

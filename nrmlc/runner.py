@@ -8,6 +8,9 @@ A *job* is anything with
 - ``frames() -> int``: how many frames it tracks (for progress and estimates);
 - ``execute() -> dict`` of numpy arrays: the work, run in a worker process;
 - ``result(arrays)``: the object callers get back from the stored arrays;
+- optionally ``problem(arrays) -> str | None``: why stored arrays are not a
+  finished result of this job (missing arrays, fewer boxes than frames), or
+  None; such a file is recomputed with a warning naming it;
 - ``folder``: a sub-folder of the cache ("" for tracking runs);
 - ``label``: free text for progress lines.
 
@@ -21,7 +24,11 @@ was run. So:
 - changing tracker or kernel code recomputes everything it could affect;
 - files are written atomically (:mod:`nrmlc.io`), so a killed run leaves no
   corrupt result, only missing ones; a file damaged some other way (a full
-  disk, a copy cut short) counts as missing, with a warning naming it.
+  disk, a copy cut short), or one that does not hold the whole result the
+  job describes (:meth:`RunSpec.problem`), counts as missing, with a warning
+  naming it;
+- a sequence folder is keyed by the content of its frames and ground truth
+  (:attr:`nrmlc.data.Sequence.identity`), not by its path or name.
 
 Jobs go to any :class:`concurrent.futures.Executor`. By default a process
 pool whose workers each use one thread for numba, OpenBLAS and OpenCV (on 2
@@ -49,6 +56,7 @@ from typing import ClassVar
 import numpy as np
 
 from nrmlc import io
+from nrmlc.errors import ParameterError
 from nrmlc.tracker.params import TrackerParams
 from nrmlc.tracker.run import TrackResult, track_sequence
 
@@ -81,8 +89,16 @@ def code_version() -> str:
 
 def sequence_identity(sequence) -> str:
     """A string naming the sequence's content: :attr:`nrmlc.data.Sequence.identity`
-    (its folder or its synthetic spec, plus an overridden initial box)."""
+    (a digest of its frames' bytes and its ground truth, or its synthetic spec, plus an
+    overridden initial box)."""
     return sequence.identity
+
+
+def _count(what: str, value, low: int) -> int:
+    """``value`` as a Python int >= ``low``; a float, bool or anything else is refused, never truncated."""
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < low:
+        raise ParameterError(f"{what} must be an integer >= {low}, got {value!r}")
+    return int(value)
 
 
 def frames_tracked(sequence, n_frames: int | None) -> int:
@@ -139,11 +155,35 @@ class RunSpec:
             description["recentre_every"] = int(self.recentre_every)
         return description
 
+    def __post_init__(self) -> None:
+        if not isinstance(self.params, TrackerParams):
+            raise ParameterError(f"RunSpec: params must be a TrackerParams, got {type(self.params).__name__} "
+                                 f"(TrackerParams(**values) makes one from a dict)")
+        object.__setattr__(self, "seed", _count("RunSpec: seed", self.seed, 0))
+        if self.n_frames is not None:
+            object.__setattr__(self, "n_frames", _count("RunSpec: n_frames", self.n_frames, 1))
+
     def key(self, version: str) -> str:
         return description_key(self.description(version))
 
     def frames(self) -> int:
         return frames_tracked(self.sequence, self.n_frames)
+
+    def problem(self, arrays: dict) -> str | None:
+        """Why ``arrays`` are not a finished run of this spec (None: they are)."""
+        n = self.frames()
+        for name, columns in (("boxes", 4), ("states", 6)):
+            if name not in arrays:
+                return f"no {name!r} array"
+            shape = np.shape(arrays[name])
+            if shape != (n, columns):
+                return f"{name!r} has shape {shape}, expected ({n}, {columns}) for {n} frames"
+        if not np.isfinite(arrays["boxes"]).all():
+            return "non-finite boxes"
+        for name in ("seconds_tracking", "seconds_total"):
+            if name not in arrays or np.shape(arrays[name]) != ():
+                return f"no {name!r} value"
+        return None
 
     def execute(self) -> dict:
         truth = self.sequence.groundtruth if self.recentre_every else None
@@ -326,23 +366,42 @@ class RunCache:
             return {name: arrays[name] for name in arrays.files}
 
     def load(self, job):
-        return job.result(self._read(self.path(job)))
+        """The job's stored result.
+
+        Raises
+        ------
+        DataError
+            If its file is missing, damaged or not a finished result (a warning names it).
+        """
+        from nrmlc.errors import DataError
+
+        arrays = self._readable(self.path(job), job)
+        if arrays is None:
+            raise DataError(f"{self.path(job)}: no finished result of this job in the cache")
+        return job.result(arrays)
 
     def store(self, job, arrays: dict) -> None:
         # The result first, then its description: a present .npz is always complete.
         io.write_npz(self.path(job), **arrays)
         io.write_json(self.path(job).with_suffix(".json"), job.description(self.version))
 
-    def _readable(self, path: Path):
-        """The stored arrays, or None (with a warning naming the file) if it is damaged."""
+    def _readable(self, path: Path, job=None):
+        """The stored arrays, or None (with a warning naming the file) if it is damaged or, for
+        a job with a ``problem`` method, not a finished result of ``job``."""
         if not path.is_file():
             return None
         try:
-            return self._read(path)
+            arrays = self._read(path)
         except _DAMAGED as exc:
             warnings.warn(f"{path}: damaged cache file ({type(exc).__name__}: {exc}); computing it again",
                           stacklevel=3)
             return None
+        check = getattr(job, "problem", None)
+        problem = check(arrays) if check is not None else None
+        if problem is not None:
+            warnings.warn(f"{path}: incomplete cache entry ({problem}); computing it again", stacklevel=3)
+            return None
+        return arrays
 
     def missing(self, jobs: list) -> list:
         """The distinct jobs of ``jobs`` whose file is absent or cut short (a cheap check:
@@ -390,7 +449,7 @@ class RunCache:
             unique.setdefault(self.path(job), job)
         missing = []
         for path, job in unique.items():
-            arrays = self._readable(path)
+            arrays = self._readable(path, job)
             if arrays is None:
                 missing.append(job)
             else:

@@ -8,16 +8,15 @@ by :meth:`BoxVideoWriter.close` (or with the run's other outputs, see
 """
 from __future__ import annotations
 
-import contextlib
 import os
-import sys
 from pathlib import Path
 
 import cv2
 import numpy as np
 
 from nrmlc import io
-from nrmlc.errors import DataError, ParameterError
+from nrmlc.data.image import native_messages
+from nrmlc.errors import OutputError, ParameterError
 
 #: Containers that OpenCV writes with the mp4v codec (checked before opening, so
 #: that an unknown extension gives our message, not OpenCV's).
@@ -32,22 +31,24 @@ def check_video_path(path: str | os.PathLike, option: str = "--video") -> None:
                              f"use one of {', '.join(VIDEO_EXTENSIONS)}")
 
 
-@contextlib.contextmanager
 def _quiet_stderr():
-    """Silence C-level stderr (OpenCV/FFmpeg print their own lines there)."""
-    try:
-        sys.stderr.flush()
-        saved = os.dup(2)
-    except (OSError, ValueError):  # no real fd 2 (e.g. an embedding host): nothing to silence
-        yield
-        return
-    try:
-        with open(os.devnull, "wb") as null:
-            os.dup2(null.fileno(), 2)
-            yield
-    finally:
-        os.dup2(saved, 2)
-        os.close(saved)
+    """Keep C-level stderr (OpenCV/FFmpeg print their own lines there) from the user."""
+    return native_messages()
+
+
+def count_decodable_frames(path: str | os.PathLike) -> int:
+    """How many frames decode from the start of the video file ``path`` (0 if it does not open)."""
+    with native_messages():
+        capture = cv2.VideoCapture(str(path))
+        try:
+            if not capture.isOpened():
+                return 0
+            n = 0
+            while capture.grab():
+                n += 1
+            return n
+        finally:
+            capture.release()
 
 
 class BoxVideoWriter:
@@ -71,8 +72,12 @@ class BoxVideoWriter:
         self.sequence = sequence
         height, width = sequence.frame_size
         self.tmp_path = io.temporary_for(path)
-        with _quiet_stderr():
-            self.writer = cv2.VideoWriter(str(self.tmp_path), cv2.VideoWriter_fourcc(*"mp4v"), fps, (width, height))
+        try:
+            with _quiet_stderr():
+                self.writer = cv2.VideoWriter(str(self.tmp_path), cv2.VideoWriter_fourcc(*"mp4v"), fps, (width, height))
+        except BaseException:
+            io.discard(self.tmp_path)
+            raise
         if not self.writer.isOpened():
             io.discard(self.tmp_path)
             raise ParameterError(f"--video {path}: cannot open a video writer (mp4v)")
@@ -88,7 +93,8 @@ class BoxVideoWriter:
         box = tracker.initial_box if index == 0 else tracker.last.box
         _draw(image, box, TRACKER_COLOUR)
         _legend(image, index, has_truth)
-        self.writer.write(image)
+        with native_messages():
+            self.writer.write(image)
         self.frames_written += 1
 
     def finish(self) -> Path | None:
@@ -97,13 +103,21 @@ class BoxVideoWriter:
         The caller renames it over ``path`` (:func:`nrmlc.io.commit`, or
         :meth:`nrmlc.io.Together.file` with the run's other outputs).
         """
-        self.writer.release()
+        with native_messages():
+            self.writer.release()
         if not self.frames_written:
             io.discard(self.tmp_path)
             return None
-        if os.path.getsize(self.tmp_path) == 0:  # OpenCV reports no write errors (e.g. a full disk)
+        # OpenCV reports no write error (a full disk, a lost file system): a video is kept only
+        # when every frame drawn decodes back from the file, before it replaces anything.
+        if os.path.getsize(self.tmp_path) == 0:
             io.discard(self.tmp_path)
-            raise DataError(f"--video {self.path}: the video writer wrote nothing (disk full?); no video written")
+            raise OutputError(f"--video {self.path}: the video writer wrote nothing (disk full?); no video written")
+        decoded = count_decodable_frames(self.tmp_path)
+        if decoded != self.frames_written:
+            io.discard(self.tmp_path)
+            raise OutputError(f"--video {self.path}: only {decoded} of the {self.frames_written} frames written "
+                              f"decode back (disk full?); no video written, the earlier file is kept")
         return self.tmp_path
 
     def close(self) -> None:
@@ -113,7 +127,8 @@ class BoxVideoWriter:
 
     def abort(self) -> None:
         """Drop the partial video; an earlier file at ``path`` stays as it was."""
-        self.writer.release()
+        with native_messages():
+            self.writer.release()
         io.discard(self.tmp_path)
 
 

@@ -17,6 +17,7 @@ nothing is lost.
 from __future__ import annotations
 
 import os
+import shutil
 import re
 import signal
 import subprocess
@@ -210,7 +211,7 @@ def _default_sigint() -> None:
     signal.signal(signal.SIGINT, signal.SIG_DFL)
 
 
-@pytest.mark.parametrize("signum", [signal.SIGINT, signal.SIGTERM], ids=["SIGINT", "SIGTERM"])
+@pytest.mark.parametrize("signum", [signal.SIGINT, signal.SIGTERM, signal.SIGHUP], ids=["SIGINT", "SIGTERM", "SIGHUP"])
 def test_signal_during_a_video_run_keeps_earlier_files(signum, tmp_path):
     # Long enough that the signal arrives well before the end: the fast settings track these
     # frames at 400-650 fps, and the partial video appears about 0.5 s into the run.
@@ -287,10 +288,11 @@ def test_track_output_round_trips_and_evaluates(seq, tmp_path, capsys):
 
 
 # ------------------------------------------------------ cache identity
-def test_sequence_identity_is_unchanged(seq, tmp_path):
-    """The cache keys of ordinary runs must not change: these strings are what runner.py built before."""
+def test_sequence_identity_is_its_content(seq, tmp_path):
+    """A folder is keyed by its frames' bytes and its ground truth: not by its path or name."""
     sequence = open_sequence(seq)
-    assert sequence.identity == f"folder:{os.path.abspath(str(seq))}:Seq:{N_FRAMES}"
+    assert re.fullmatch(rf"frames:{N_FRAMES}:sha256=[0-9a-f]{{32}}", sequence.identity)
+    assert open_sequence(shutil.copytree(seq, tmp_path / "elsewhere" / "Other")).identity == sequence.identity
     synthetic = synthetic_suite(n_frames=4, size=(48, 64), n_sequences=1)[0]
     assert synthetic.identity == f"synthetic:{synthetic.spec!r}"
     moved = sequence.with_init_box((3, 4.5, 20, 21))
@@ -310,7 +312,7 @@ def test_long_output_name_is_written(seq, tmp_path, capsys):
 
 
 def test_video_writer_that_wrote_nothing_keeps_the_earlier_video(seq, tmp_path):
-    from nrmlc.errors import DataError
+    from nrmlc.errors import OutputError
     from nrmlc.video import BoxVideoWriter
 
     video = tmp_path / "v.mp4"
@@ -328,7 +330,7 @@ def test_video_writer_that_wrote_nothing_keeps_the_earlier_video(seq, tmp_path):
 
     writer.writer = Silent()
     writer.frames_written = 3
-    with pytest.raises(DataError, match=r"--video .*v\.mp4: the video writer wrote nothing"):
+    with pytest.raises(OutputError, match=r"--video .*v\.mp4: the video writer wrote nothing"):
         writer.close()
     assert video.read_bytes() == b"an earlier video" and not temporaries(tmp_path)
 

@@ -38,6 +38,8 @@ _NUMBER = re.compile(r"[+-]?(?:[0-9]+\.?[0-9]*|\.[0-9]+)(?:[eE][+-]?[0-9]+)?|[+-
 
 #: Largest coordinate or size (pixels) taken as a real box.
 MAX_COORDINATE = 1e9
+#: Largest box file read: 10^7 lines of 4 long numbers (a sparse pack allows 10^7 frames too).
+MAX_BOX_FILE_BYTES = 1 << 30
 
 
 def parse_box_line(line: str, where: str) -> list[float]:
@@ -97,6 +99,11 @@ def read_box_file(path: str | os.PathLike, predictions: bool = False) -> np.ndar
     if not os.path.isfile(path):
         # A folder, or a FIFO that would block the read forever.
         raise DataError(f"{path}: box file is not a regular file")
+    size = os.path.getsize(path)
+    if size > MAX_BOX_FILE_BYTES:
+        # Read whole into memory otherwise (a mislabelled video or archive of gigabytes).
+        raise DataError(f"{path}: {size / 2**20:.0f} MB is not a box file (at most {MAX_BOX_FILE_BYTES >> 20} MB, "
+                        f"about 10^7 boxes)")
     with open(path, "rb") as handle:
         lines = _decode(handle.read(), path).splitlines()
     while lines and not lines[-1].strip():

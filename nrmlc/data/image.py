@@ -1,6 +1,12 @@
 """Turning an image array into the float32 gray frame every part of nrmlc works on."""
 from __future__ import annotations
 
+import contextlib
+import os
+import sys
+import tempfile
+import threading
+
 import cv2
 import numpy as np
 
@@ -39,3 +45,66 @@ def to_gray_float32(image: np.ndarray) -> np.ndarray:
         if scale is not None:
             np.clip(gray, 0.0, 1.0, out=gray)
     return np.ascontiguousarray(gray)
+
+
+# ------------------------------------------------------- C libraries' messages
+_native_lock = threading.RLock()
+_native_fd: int | None = None
+_native_pid: int | None = None
+
+
+@contextlib.contextmanager
+def native_messages():
+    """Collect what C libraries (libjpeg, libpng, FFmpeg) write to file descriptor 2 in the block.
+
+    Yields a list that holds their lines once the block ends; nothing of
+    theirs reaches the terminal, so our one-line error or warning stands
+    alone. Python's own ``sys.stderr`` is flushed first and is not affected
+    except for its writes inside the block (which are collected too). A lock
+    keeps threads of one process from redirecting at once (each would
+    restore the other's redirection). Cost: about 13 us per use on Linux,
+    against 2-5 ms per frame for tracking.
+
+    Where file descriptor 2 cannot be redirected (no real descriptor), the
+    block runs as it is and the list stays empty.
+    """
+    global _native_fd, _native_pid
+    messages: list[str] = []
+    with _native_lock:
+        try:
+            if _native_fd is None or _native_pid != os.getpid():  # a forked child gets its own
+                _native_fd = _anonymous_file()
+                _native_pid = os.getpid()
+            sys.stderr.flush()
+            saved = os.dup(2)
+        except (OSError, ValueError, AttributeError):
+            yield messages
+            return
+        try:
+            os.dup2(_native_fd, 2)
+            yield messages
+        finally:
+            os.dup2(saved, 2)
+            os.close(saved)
+            size = os.lseek(_native_fd, 0, os.SEEK_CUR)
+            if size:
+                os.lseek(_native_fd, 0, os.SEEK_SET)
+                text = os.read(_native_fd, min(size, 65536)).decode("utf-8", errors="replace")
+                messages.extend(line.strip() for line in text.splitlines() if line.strip())
+                os.ftruncate(_native_fd, 0)
+                os.lseek(_native_fd, 0, os.SEEK_SET)
+
+
+def _anonymous_file() -> int:
+    """A file descriptor of a file with no name (nothing to leave behind)."""
+    if hasattr(os, "memfd_create"):
+        return os.memfd_create("nrmlc-native-stderr")
+    fd, name = tempfile.mkstemp(prefix=".tmp-nrmlc-stderr-")
+    os.unlink(name)
+    return fd
+
+
+def native_summary(messages: list[str]) -> str:
+    """The C library's lines as one short clause for our messages."""
+    text = "; ".join(dict.fromkeys(messages))  # in order, without repeats
+    return text if len(text) <= 200 else text[:197] + "..."

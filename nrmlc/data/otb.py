@@ -48,6 +48,7 @@ from nrmlc.data.boxes import read_box_file
 from nrmlc.data.sequence import Sequence
 from nrmlc.data.sparsepack import (
     DATAINFO_NAME,
+    GROUNDTRUTH_MAT_PATTERN,
     find_groundtruth_mat,
     is_sparsepack,
     read_datainfo,
@@ -158,12 +159,31 @@ def find_images(folder: str | os.PathLike) -> list[Path]:
         _check_regular(image)
     return order_frames(images)
 
+def _present(path: Path) -> bool:
+    """Whether ``path`` is there as a readable regular file; False when nothing is there.
+
+    Something there that cannot be read as a file (a dangling or looping link, a FIFO, a
+    device, a folder) is an error naming it, not an absence: it would silently turn an
+    annotated sequence into one without ground truth.
+    """
+    if not os.path.lexists(path):
+        return False
+    _check_regular(path)
+    return True
+
+
 def find_target_groundtruths(folder: str | os.PathLike) -> dict[int, Path]:
-    """Per-target ground-truth files ``groundtruth_rect.<k>.txt``, keyed by ``k``."""
+    """Per-target ground-truth files ``groundtruth_rect.<k>.txt``, keyed by ``k``.
+
+    Raises
+    ------
+    DataError
+        If one of them is not a readable regular file, or two name the same target.
+    """
     found = {}
     for path in sorted(Path(folder).iterdir()):
         match = _TARGET_GROUNDTRUTH.match(path.name)
-        if match and path.is_file():
+        if match and _present(path):
             target = int(match.group(1))
             if target in found:  # groundtruth_rect.1.txt and groundtruth_rect.01.txt
                 raise DataError(f"{folder}: {found[target].name} and {path.name} are both target {target}; keep one")
@@ -242,13 +262,16 @@ def open_sequence(
             raise DataError(f"{folder}: no groundtruth_rect.{target}.txt (targets: {available})")
         groundtruth_path = targets[target]
         name = f"{base_name}-{target}"
-    elif (folder / GROUNDTRUTH_NAME).is_file():
+    elif _present(folder / GROUNDTRUTH_NAME):
         groundtruth_path = folder / GROUNDTRUTH_NAME
     elif targets:
         first_target = next(iter(targets))
         groundtruth_path = targets[first_target]
         name = f"{base_name}-{first_target}"
 
+    if groundtruth_path is None:
+        for pack_file in (folder / DATAINFO_NAME, *folder.glob(GROUNDTRUTH_MAT_PATTERN)):
+            _present(pack_file)  # a pack's files that exist must be readable files
     from_sparsepack = groundtruth_path is None and is_sparsepack(folder)
     if groundtruth_path is not None:
         groundtruth = read_box_file(groundtruth_path)
@@ -293,15 +316,44 @@ def list_sequences(root: str | os.PathLike) -> list[Sequence]:
     if not root.is_dir():
         raise DataError(f"{root}: data root {'is not a folder' if root.exists() else 'not found'}")
     sequences = []
-    for folder in sorted(p for p in root.iterdir() if p.is_dir()):
+    # Names starting with a dot are skipped, as among the frames (a writer's hidden temporary folder).
+    for folder in sorted(p for p in root.iterdir() if p.is_dir() and not p.name.startswith(".")):
         if not (folder / IMAGE_FOLDER).is_dir():
             continue
         targets = find_target_groundtruths(folder)
-        if targets and not (folder / GROUNDTRUTH_NAME).is_file():
+        if targets and not _present(folder / GROUNDTRUTH_NAME):
             sequences.extend(open_sequence(folder, target) for target in targets)
         else:
             sequences.append(open_sequence(folder))
     if not sequences:
         hint = "; it is itself a sequence folder: use 'track' on it" if (root / IMAGE_FOLDER).is_dir() else ""
         raise DataError(f"{root}: no sequences (subfolders with an '{IMAGE_FOLDER}' folder){hint}")
+    check_unique_names(sequences, root)
     return sorted(sequences, key=lambda s: s.name)
+
+
+def _source(sequence: Sequence) -> str:
+    """Where a sequence comes from, for messages: its folder, and its target file for one target of several."""
+    gt = sequence.groundtruth_path
+    if gt is not None and _TARGET_GROUNDTRUTH.match(gt.name):
+        return f"{sequence.path} (target file {gt.name})"
+    return str(sequence.path if sequence.path is not None else sequence.name)
+
+
+def check_unique_names(sequences: SequenceType[Sequence], root) -> None:
+    """Refuse two sequences of one root with the same name, ignoring case (``Jog`` with two targets
+    is ``Jog-1`` and ``Jog-2``, so a folder ``Jog-1`` beside it collides): their result files
+    (``Jog-1.txt``) would overwrite each other, and on a case-insensitive disk so would ``car4.txt`` and
+    ``Car4.txt``.
+
+    Raises
+    ------
+    DataError
+        Naming both folders.
+    """
+    seen: dict[str, Sequence] = {}
+    for sequence in sequences:
+        other = seen.setdefault(sequence.name.lower(), sequence)
+        if other is not sequence:
+            raise DataError(f"{root}: two sequences are named {sequence.name!r} ({_source(other)} and "
+                            f"{_source(sequence)}); rename one folder")

@@ -11,8 +11,9 @@ Frames are read on demand, never cached, so a long sequence costs no memory.
 from __future__ import annotations
 
 import copy
+import hashlib
 import operator
-import os
+import re
 import warnings
 from pathlib import Path
 from typing import Iterator, Sequence as SequenceType
@@ -20,13 +21,22 @@ from typing import Iterator, Sequence as SequenceType
 import cv2
 import numpy as np
 
-from nrmlc.data.image import to_gray_float32
+from nrmlc.data.image import native_messages, native_summary, to_gray_float32
 from nrmlc.errors import DataError, ParameterError
 
 #: Smallest frame (pixels per side) the tracker accepts.
 MIN_FRAME_SIDE = 2
 _PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
 _PNG_END = b"IEND\xaeB`\x82"  # the IEND chunk's type and its fixed CRC
+_JPEG_SIGNATURE = b"\xff\xd8\xff"
+#: What OpenCV decodes by content, whatever the name says (a PNG named .jpg still reads).
+_IMAGE_SIGNATURES = (_JPEG_SIGNATURE, _PNG_SIGNATURE, b"BM", b"II*\x00", b"MM\x00*", b"RIFF", b"\x00\x00\x00\x0cjP",
+                     b"P1", b"P2", b"P3", b"P4", b"P5", b"P6")
+#: libjpeg's warnings that mean image data is missing or garbled (it decodes the rest and
+#: fills the hole with grey) ...
+_JPEG_DAMAGE = re.compile(r"corrupt jpeg data|premature end|invalid sos|bogus|huffman", re.IGNORECASE)
+#: ... but for junk after the last scan, before the end marker: the image itself is whole.
+_JPEG_HARMLESS = re.compile(r"extraneous bytes before marker 0xd9", re.IGNORECASE)
 
 
 class Sequence:
@@ -75,6 +85,7 @@ class Sequence:
         self._has_groundtruth = groundtruth is not None
         self._groundtruth = self._fit_groundtruth(groundtruth)
         self._init_box_override = None if init_box is None else _check_init_box(init_box, self._where)
+        self._identity: str | None = None  # computed on first use (see identity)
         # The size is fixed by frame 0; every later frame is compared with it.
         self._frame_size: tuple[int, int] | None = None
         first = self.raw_frame(0)
@@ -96,20 +107,49 @@ class Sequence:
 
     @property
     def identity(self) -> str:
-        """What the sequence holds, as a string for cache keys.
+        """What the sequence holds, as a string for cache keys: the one definition of it.
 
-        ``folder:<absolute folder>:<name>:<n_frames>`` for a folder (the
-        synthetic subclass returns its spec instead), plus
-        ``:init_box=x,y,w,h`` when the initial box was overridden, so that
-        runs from another initial box never share a key with ordinary ones.
+        For a folder, ``frames:<n>:sha256=<digest>`` where the digest covers
+        every frame's bytes, in frame order, and the ground-truth boxes as
+        read (so an edited ``groundtruth_rect.txt`` or a regenerated frame
+        gives a new key, and a moved or copied folder keeps its key). Each
+        file is hashed once per process while its size and times stay the
+        same (:mod:`nrmlc.data.fingerprint`); the string is computed once per
+        sequence object. A synthetic sequence returns its generating spec, a
+        video file the digest of its bytes. ``:init_box=x,y,w,h`` is appended
+        when the initial box was overridden, so that runs from another initial
+        box never share a key with ordinary ones.
+
+        Raises
+        ------
+        DataError
+            If a frame can no longer be read (the message names it).
         """
-        identity = self._content_identity()
+        if self._identity is None:
+            self._identity = self._content_identity()
+        identity = self._identity
         if self._init_box_override is not None:
             identity += ":init_box=" + ",".join(repr(float(v)) for v in self._init_box_override)
         return identity
 
     def _content_identity(self) -> str:
-        return f"folder:{os.path.abspath(str(self.path))}:{self.name}:{len(self)}"
+        if self.image_paths is None:
+            # A subclass that renders its own frames and does not say what they are: its class
+            # and name stand in for the frames (as before content keys), never a bare digest of
+            # the ground truth that another such sequence could share.
+            digest = hashlib.sha256()
+            self._hash_groundtruth(digest)
+            return f"{type(self).__name__}:{self.name}:{len(self)}:sha256={digest.hexdigest()[:32]}"
+        digest = hashlib.sha256()
+        for path in self.image_paths:
+            digest.update(_digest_of(path).encode())
+        self._hash_groundtruth(digest)
+        return f"frames:{len(self)}:sha256={digest.hexdigest()[:32]}"
+
+    def _hash_groundtruth(self, digest) -> None:
+        """Add the ground truth the runs see (padded or cut to the frame count) to ``digest``."""
+        digest.update(b"groundtruth" if self._has_groundtruth else b"no groundtruth")
+        digest.update(np.ascontiguousarray(self._groundtruth, dtype=np.float64).tobytes())
 
     @property
     def frame_size(self) -> tuple[int, int]:
@@ -173,7 +213,11 @@ class Sequence:
             raise DataError(f"{file}: cannot read image ({exc.strerror or exc})") from None
         if not data:
             raise DataError(f"{file}: cannot read image (empty file)")
-        if file.suffix.lower() in (".jpg", ".jpeg") and not _jpeg_is_complete(data):
+        if not data.startswith(_IMAGE_SIGNATURES):
+            raise DataError(f"{file}: cannot read image (not an image: no JPEG, PNG or BMP signature; "
+                            f"it starts with {data[:12]!r})")
+        jpeg = data.startswith(_JPEG_SIGNATURE)
+        if jpeg and not _jpeg_is_complete(data):
             # libjpeg decodes a truncated file without error (grey bottom rows): refuse it.
             raise DataError(f"{file}: cannot read image (truncated JPEG: no end-of-image marker)")
         if data.startswith(_PNG_SIGNATURE) and _PNG_END not in data[-16:]:
@@ -183,9 +227,16 @@ class Sequence:
             # OpenCV decodes a short BMP without a word, the missing rows as black.
             raise DataError(f"{file}: cannot read image (truncated BMP: {len(data)} of "
                             f"{int.from_bytes(data[2:6], 'little')} bytes)")
-        image = cv2.imdecode(np.frombuffer(data, dtype=np.uint8), cv2.IMREAD_UNCHANGED)
+        # libjpeg and libpng print their complaints on stderr: collected here, so that ours stands alone.
+        with native_messages() as messages:
+            image = cv2.imdecode(np.frombuffer(data, dtype=np.uint8), cv2.IMREAD_UNCHANGED)
         if image is None:
-            raise DataError(f"{file}: cannot read image (missing, corrupt or unsupported format)")
+            detail = f": {native_summary(messages)}" if messages else ""
+            raise DataError(f"{file}: cannot read image (corrupt or unsupported format{detail})")
+        damage = [m for m in messages if _JPEG_DAMAGE.search(m) and not _JPEG_HARMLESS.search(m)] if jpeg else []
+        if damage:
+            # libjpeg fills what it could not decode with grey and carries on: a frame with a hole.
+            raise DataError(f"{file}: cannot read image (damaged JPEG data: {native_summary(damage)})")
         return image
 
     def _describe_frame(self, index: int) -> str:
@@ -279,6 +330,15 @@ class Sequence:
             )
             boxes = boxes[:n_frames]
         return boxes.copy()
+
+
+def _digest_of(path: Path) -> str:
+    from nrmlc.data.fingerprint import file_digest
+
+    try:
+        return file_digest(path)
+    except OSError as exc:
+        raise DataError(f"{path}: cannot read image ({exc.strerror or exc})") from None
 
 
 def _jpeg_is_complete(data: bytes) -> bool:

@@ -122,11 +122,13 @@ def read_sparsepack_groundtruth(folder: str | os.PathLike, n_images: int | None 
         On a missing/ambiguous/unreadable mat file, missing variables, a
         keyframe index that is not an integer in ``1..n_frames`` or appears
         twice, a corner array that is malformed or holds text, NaN or
-        infinite values, or a frame count that disagrees with ``n_images``.
+        infinite values, corners more than a frame's width (height) outside
+        the frame ``datainfo.txt`` gives, a box of zero width or height, or
+        a frame count that disagrees with ``n_images``.
     """
     import scipy.io  # deferred: scipy.io is slow to import and rarely needed
 
-    _, _, n_frames = read_datainfo(folder)
+    width, height, n_frames = read_datainfo(folder)
     if n_images is not None and n_frames != n_images:
         raise DataError(f"{Path(folder) / DATAINFO_NAME}: says {n_frames} frames but the img folder holds {n_images}")
     mat_path = find_groundtruth_mat(folder)
@@ -170,5 +172,14 @@ def read_sparsepack_groundtruth(folder: str | os.PathLike, n_images: int | None 
             )
         if not np.isfinite(corners).all():
             raise DataError(f"{mat_path}: keyframe {frame_index}: NaN or infinite corner coordinates")
-        boxes[frame_index - 1] = corners_to_box(corners)
+        xs, ys = corners
+        # More than a frame's size outside the frame is no annotation of this video (a box may
+        # stick out of the frame a little, as a target leaving it does).
+        if xs.min() < 1 - width or xs.max() > 2 * width + 1 or ys.min() < 1 - height or ys.max() > 2 * height + 1:
+            raise DataError(f"{mat_path}: keyframe {frame_index}: corners x {xs.min():g}..{xs.max():g}, "
+                            f"y {ys.min():g}..{ys.max():g} lie far beyond the {width}x{height} frame")
+        box = corners_to_box(corners)
+        if box[2] <= 0 or box[3] <= 0:
+            raise DataError(f"{mat_path}: keyframe {frame_index}: a box of zero size ({box[2]:g}x{box[3]:g} px)")
+        boxes[frame_index - 1] = box
     return boxes

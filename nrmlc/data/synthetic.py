@@ -39,6 +39,7 @@ import cv2
 import numpy as np
 
 from nrmlc.config import PATCH_SIZE
+from nrmlc.data.image import native_messages
 from nrmlc.data.otb import GROUNDTRUTH_NAME, IMAGE_EXTENSIONS, IMAGE_FOLDER
 from nrmlc.data.sequence import Sequence
 from nrmlc.errors import DataError, ParameterError
@@ -138,6 +139,13 @@ class SyntheticSpec:
         for ok, message in checks:
             if not ok:
                 raise ParameterError(f"SyntheticSpec {self.name!r}: {message}")
+
+    def estimated_bytes(self) -> float:
+        """Memory a :class:`SyntheticSequence` of this spec takes while it is built and used: about
+        30 float64 per frame (states, boxes, illumination and their intermediates) and a few
+        float32 layers of the frame's and the target texture's size."""
+        texels = (_TEXELS_PER_PIXEL**2) * self.target_width * self.target_height
+        return 256.0 * self.n_frames + 40.0 * self.frame_height * self.frame_width + 64.0 * texels
 
 
 # ---------------------------------------------------------------- textures
@@ -428,11 +436,40 @@ def synthetic_suite(
     Returns
     -------
     list of SyntheticSequence
+
+    Raises
+    ------
+    ParameterError
+        For a value out of range, or when the sequences together would need
+        more memory than is available (they are all held at once; see
+        :func:`suite_specs` to build them one at a time).
     """
+    from nrmlc.resources import available_memory, gigabytes
+
+    specs = suite_specs(n_frames, size, n_sequences, seed)
+    need = sum(spec.estimated_bytes() for spec in specs)
+    limit = available_memory()
+    if limit is not None and need > limit:
+        raise ParameterError(f"synthetic_suite: {n_sequences} sequences of {n_frames} frames need about "
+                             f"{gigabytes(need)} of memory together, {gigabytes(limit)} is available")
+    return [SyntheticSequence(spec) for spec in specs]
+
+
+def suite_specs(
+    n_frames: int = 120,
+    size: tuple[int, int] = (240, 320),
+    n_sequences: int = 3,
+    seed: int = 0,
+) -> list[SyntheticSpec]:
+    """The specs of :func:`synthetic_suite` (same arguments), without building any sequence:
+    for callers that build and write them one at a time (``nrmlc synth``)."""
     for name, value, low, high in (("n_sequences", n_sequences, 1, MAX_SEQUENCES), ("n_frames", n_frames, 2, MAX_FRAMES),
                                    ("seed", seed, 0, 2**63 - 1)):
         if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or not low <= value <= high:
             raise ParameterError(f"synthetic_suite: {name} must be an integer in {low}..{high}, got {value!r}")
+    if isinstance(size, (str, bytes)) or len(size) != 2 or any(
+            isinstance(v, bool) or not isinstance(v, (int, np.integer)) for v in size):
+        raise ParameterError(f"synthetic_suite: size must be two integers (height, width), got {size!r}")
     height, width = (int(v) for v in size)
     zoom = min(height / 240.0, width / 320.0)
     sequences = []
@@ -450,17 +487,58 @@ def synthetic_suite(
             translation_amplitude_y=SyntheticSpec.translation_amplitude_y * zoom,
             motion_period=SyntheticSpec.motion_period,
         )
-        sequences.append(SyntheticSequence(spec))
+        sequences.append(spec)
     return sequences
 
 
+def check_otb_destination(folder: str | os.PathLike, n_frames: int) -> None:
+    """Refuse, before anything is written, a folder :func:`write_otb_sequence` must not replace.
+
+    Nothing there, or an earlier sequence of the same length as this function
+    writes them (``img/0001.png ...`` and ``groundtruth_rect.txt``, nothing
+    else), may be replaced; anything else is the user's and is refused.
+
+    Raises
+    ------
+    DataError
+        Naming the folder or the first file that is not ours.
+    """
+    folder = Path(folder)
+    if not os.path.lexists(folder):
+        return
+    if folder.is_symlink():
+        raise DataError(f"{folder}: is a symbolic link (it would be replaced by a folder); write to its target "
+                        f"or choose another --out")
+    if not folder.is_dir():
+        raise DataError(f"{folder}: exists and is not a folder; choose another --out")
+    image_folder = folder / IMAGE_FOLDER
+    ours = {f"{index + 1:04d}.png" for index in range(n_frames)}
+    for entry in sorted(folder.iterdir()):
+        if entry.name == IMAGE_FOLDER and entry.is_dir() and not entry.is_symlink():
+            continue
+        if entry.name == GROUNDTRUTH_NAME and entry.is_file() and not entry.is_symlink():
+            continue
+        raise DataError(f"{entry}: not part of a sequence this writer made; use an empty folder "
+                        f"(nothing was written)")
+    if image_folder.is_dir():
+        for entry in sorted(image_folder.iterdir()):
+            if entry.name in ours and entry.is_file() and not entry.is_symlink():
+                continue
+            what = "already holds other frames" if entry.suffix.lower() in IMAGE_EXTENSIONS else "holds other files"
+            raise DataError(f"{image_folder}: {what} ({entry.name}, ...); use an empty folder (nothing was written)")
+
+
 def write_otb_sequence(sequence: Sequence, folder: str | os.PathLike) -> Path:
-    """Write any sequence as an OTB folder (lossless PNG frames + ground truth).
+    """Write any sequence as an OTB folder (lossless PNG frames + ground truth), all or nothing.
 
     Writes ``folder/img/0001.png, ...`` (the frames as stored: gray or colour,
     8 or 16 bit) and ``folder/groundtruth_rect.txt`` (unannotated frames as
-    ``0,0,0,0``; exact values), each file atomically. Reading the folder back
-    with :func:`~nrmlc.data.open_sequence` gives identical frames.
+    ``0,0,0,0``; exact values). Everything goes to a hidden temporary folder
+    beside ``folder`` first, which is renamed into place once complete (an
+    earlier sequence there is moved aside in the same breath, then removed):
+    an error, a full disk or an interrupt leaves the earlier folder as it was
+    and no temporary folder. Reading the folder back with
+    :func:`~nrmlc.data.open_sequence` gives identical frames.
 
     Returns
     -------
@@ -469,26 +547,66 @@ def write_otb_sequence(sequence: Sequence, folder: str | os.PathLike) -> Path:
     Raises
     ------
     DataError
-        If ``folder/img`` already holds frames that this write would not
-        replace (they would be read as part of the sequence).
+        If ``folder`` holds anything but an earlier sequence of the same length
+        (:func:`check_otb_destination`), checked before anything is written.
+    OutputError
+        If a file cannot be written (the message names it).
     """
+    import shutil
+    import tempfile
+
+    from nrmlc.errors import OutputError
+    from nrmlc.io import _signals_held
+
     folder = Path(folder)
-    image_folder = folder / IMAGE_FOLDER
-    names = [f"{index + 1:04d}.png" for index in range(len(sequence))]
-    if image_folder.is_dir():
-        ours = set(names)
-        stale = sorted(
-            p.name for p in image_folder.iterdir() if p.suffix.lower() in IMAGE_EXTENSIONS and p.name not in ours
-        )
-        if stale:
-            raise DataError(f"{image_folder}: already holds other frames ({stale[0]}, ...); use an empty folder")
-    for index, name in enumerate(names):
-        ok, encoded = cv2.imencode(".png", sequence.raw_frame(index))
-        if not ok:
-            raise DataError(f"{image_folder / name}: PNG encoding failed")
-        write_bytes(image_folder / name, encoded)
-    write_boxes(folder / GROUNDTRUTH_NAME, np.nan_to_num(sequence.groundtruth, nan=0.0))
+    check_otb_destination(folder, len(sequence))
+    try:
+        folder.parent.mkdir(parents=True, exist_ok=True)
+        staging = Path(tempfile.mkdtemp(prefix=f".tmp-{folder.name[:64]}-", dir=folder.parent))
+    except OSError as exc:
+        raise OutputError(f"{folder}: cannot write ({exc.strerror or exc})") from None
+    old = None
+    try:
+        os.chmod(staging, 0o777 & ~_umask())
+        image_folder = staging / IMAGE_FOLDER
+        for index in range(len(sequence)):
+            name = f"{index + 1:04d}.png"
+            with native_messages():
+                ok, encoded = cv2.imencode(".png", sequence.raw_frame(index))
+            if not ok:
+                raise DataError(f"{folder / IMAGE_FOLDER / name}: PNG encoding failed")
+            write_bytes(image_folder / name, encoded)
+        write_boxes(staging / GROUNDTRUTH_NAME, np.nan_to_num(sequence.groundtruth, nan=0.0))
+        with _signals_held():
+            if os.path.lexists(folder):
+                old = Path(tempfile.mkdtemp(prefix=f".tmp-{folder.name[:64]}-old-", dir=folder.parent))
+                os.replace(folder, old / "sequence")
+            try:
+                os.replace(staging, folder)
+            except OSError:
+                if old is not None:
+                    os.replace(old / "sequence", folder)  # put the earlier one back
+                raise
+    except OSError as exc:
+        shutil.rmtree(staging, ignore_errors=True)
+        if isinstance(exc, OutputError):
+            raise
+        raise OutputError(f"{folder}: cannot write ({exc.strerror or exc}); the earlier folder, if any, is kept") \
+            from None
+    except BaseException:
+        shutil.rmtree(staging, ignore_errors=True)
+        raise
+    finally:
+        if old is not None:
+            shutil.rmtree(old, ignore_errors=True)
     return folder
 
 
-__all__ = ["SyntheticSpec", "SyntheticSequence", "synthetic_suite", "write_otb_sequence"]
+def _umask() -> int:
+    from nrmlc.io import _current_umask
+
+    return _current_umask()
+
+
+__all__ = ["SyntheticSpec", "SyntheticSequence", "synthetic_suite", "suite_specs", "write_otb_sequence",
+           "check_otb_destination"]

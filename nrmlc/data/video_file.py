@@ -21,6 +21,7 @@ from typing import Sequence as SequenceType
 import cv2
 import numpy as np
 
+from nrmlc.data.image import native_messages
 from nrmlc.data.sequence import Sequence
 from nrmlc.errors import DataError
 
@@ -45,7 +46,9 @@ class _Reader:
 
     def open(self) -> None:
         self.close()
-        capture = cv2.VideoCapture(str(self.path))
+        # FFmpeg prints its own lines ("moov atom not found"): collected, so that ours stands alone.
+        with native_messages():
+            capture = cv2.VideoCapture(str(self.path))
         if not capture.isOpened():
             capture.release()
             raise DataError(f"{self.path}: not a folder, and not a video file OpenCV can read")
@@ -62,11 +65,12 @@ class _Reader:
         if self.capture is None or index < self.position:
             self.open()
         assert self.capture is not None
-        while self.position < index:  # skip forward without converting the skipped frames
-            if not self.capture.grab():
-                return None
-            self.position += 1
-        ok, image = self.capture.read()
+        with native_messages():
+            while self.position < index:  # skip forward without converting the skipped frames
+                if not self.capture.grab():
+                    return None
+                self.position += 1
+            ok, image = self.capture.read()
         if not ok or image is None:
             return None
         self.position += 1
@@ -77,8 +81,9 @@ class _Reader:
         self.open()
         assert self.capture is not None
         n = 0
-        while self.capture.grab():
-            n += 1
+        with native_messages():
+            while self.capture.grab():
+                n += 1
         self.close()
         return n
 
@@ -116,8 +121,10 @@ class VideoFileSequence(Sequence):
         super().__init__(name or path.stem, None, None, path=path, n_frames=n_frames, init_box=init_box)
 
     def _content_identity(self) -> str:
-        # The file, its size and its frame count: a re-encoded video gets new cache keys.
-        return f"video:{os.path.abspath(str(self.path))}:{self.path.stat().st_size}:{len(self)}"
+        # The file's bytes and the frames that decode from them: any re-encoding gets new cache keys.
+        from nrmlc.data.sequence import _digest_of
+
+        return f"video:{len(self)}:sha256={_digest_of(self.path)[:32]}"
 
     def _read_image(self, index: int) -> np.ndarray:
         image = self._reader.read(index)

@@ -13,10 +13,11 @@
 Threads (numba, BLAS, OpenCV) follow the policy of
 :func:`nrmlc.config.set_threads`, which also explains it.
 """
-from nrmlc.kernels.cache import drop_stale_cache
+from nrmlc.kernels.cache import drop_stale_cache, make_cache_robust
 
 # Before any kernel module loads its cached machine code (see nrmlc.kernels.cache).
 drop_stale_cache()
+make_cache_robust()
 
 from nrmlc.kernels.coding import (  # noqa: E402
     PLAIN_JITTER,

@@ -27,6 +27,8 @@ Per frame:
 """
 from __future__ import annotations
 
+import contextlib
+import threading
 import warnings
 from dataclasses import dataclass
 
@@ -217,6 +219,9 @@ class NRMLCTracker:
     name = "NRMLC"
 
     def __init__(self, seed: int = 0, params: TrackerParams | None = None, **overrides) -> None:
+        if params is not None and not isinstance(params, TrackerParams):
+            raise ParameterError(f"params must be a TrackerParams, got {type(params).__name__} "
+                                 f"(TrackerParams(**values), or pass the values as keywords)")
         base = params if params is not None else TrackerParams()
         self.params = base.replace(**overrides) if overrides else base
         if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
@@ -228,6 +233,28 @@ class NRMLCTracker:
         self.last: FrameResult | None = None
         self.last_candidates: dict | None = None
         self.generative: LocalHistogramModel | None = None
+        self._busy = threading.Lock()
+
+    def __getstate__(self) -> dict:
+        state = self.__dict__.copy()
+        state.pop("_busy", None)  # a lock cannot be pickled; a copy gets its own
+        return state
+
+    def __setstate__(self, state: dict) -> None:
+        self.__dict__.update(state)
+        self._busy = threading.Lock()
+
+    @contextlib.contextmanager
+    def _alone(self, what: str):
+        """One call at a time: a tracker's state is one particle cloud, advanced frame by frame;
+        two threads updating it at once would interleave their frames and break its arrays."""
+        if not self._busy.acquire(blocking=False):
+            raise ParameterError(f"NRMLCTracker.{what}: called while another thread is inside init or update of "
+                                 f"the same tracker; use one tracker per thread (or a lock around it)")
+        try:
+            yield
+        finally:
+            self._busy.release()
 
     # -- templates -------------------------------------------------------
     def patches(self, frame: np.ndarray, states: np.ndarray) -> np.ndarray:
@@ -279,6 +306,10 @@ class NRMLCTracker:
     def init(self, image, box) -> None:
         """Start tracking the target in ``box`` (1-based x, y, w, h) of ``image``
         (a numpy image or a PIL image)."""
+        with self._alone("init"):
+            self._init(image, box)
+
+    def _init(self, image, box) -> None:
         frame = as_gray_frame(image)
         box = clip_initial_box(box, frame.shape)
         p = self.params
@@ -301,7 +332,18 @@ class NRMLCTracker:
         self.last = None
 
     def update(self, image) -> np.ndarray:
-        """Track into the next frame; returns the 1-based ``(x, y, w, h)`` box."""
+        """Track into the next frame; returns the 1-based ``(x, y, w, h)`` box.
+
+        Raises
+        ------
+        ParameterError
+            Before ``init``, for a frame of another size, or when another thread is
+            inside ``init`` or ``update`` of this tracker.
+        """
+        with self._alone("update"):
+            return self._update(image)
+
+    def _update(self, image) -> np.ndarray:
         if self.state is None:
             raise ParameterError("call init(frame, box) before update(frame)")
         frame = as_gray_frame(image)

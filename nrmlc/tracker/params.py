@@ -5,6 +5,8 @@ import dataclasses
 import math
 from dataclasses import dataclass
 
+import numpy as np
+
 from nrmlc.config import PATCH_SIZE
 from nrmlc.errors import ParameterError
 from nrmlc.tracker.generative import LOCAL_SIZE, N_ATOMS
@@ -237,13 +239,30 @@ class TrackerParams:
         def fail(name: str, message: str) -> None:
             raise ParameterError(f"parameter {name}: {message}")
 
-        # Normalise sequences to tuples so params stay hashable and comparable.
-        object.__setattr__(self, "motion_sigmas", tuple(float(v) for v in self.motion_sigmas))
-        object.__setattr__(self, "dictionary_sizes", tuple(int(v) for v in self.dictionary_sizes))
+        # Normalise sequences to tuples so params stay hashable and comparable; numpy scalars
+        # become the Python numbers they equal (so that they give the same cache keys), and a
+        # float where an integer is needed is refused, never truncated.
+        for name, integral in (("motion_sigmas", False), ("dictionary_sizes", True)):
+            values = getattr(self, name)
+            if isinstance(values, (str, bytes, dict)) or not hasattr(values, "__iter__"):
+                fail(name, f"must be a sequence of numbers, got {values!r}")
+            values = tuple(values)
+            kinds = (int, np.integer) if integral else (int, float, np.integer, np.floating)
+            if any(isinstance(v, (bool, np.bool_)) or not isinstance(v, kinds) for v in values):
+                fail(name, f"must be a sequence of {'integers' if integral else 'numbers'}, got {values!r}")
+            object.__setattr__(self, name, tuple(int(v) if integral else float(v) for v in values))
+        for name in ("occlusion_detection", "keep_initial_positives"):
+            value = getattr(self, name)
+            if isinstance(value, np.bool_):
+                object.__setattr__(self, name, value := bool(value))
+            if not isinstance(value, bool):
+                fail(name, f"must be True or False, got {value!r}")
         for name in ("n_particles", "n_positive", "n_negative", "n_iterations", "update_interval",
                      "max_positive", "occlusion_max_negative", "patch_size", "estimate_count", "redetect_count",
                      "generative_candidates", "generative_neighbours", "generative_interval", "generative_step"):
             value = getattr(self, name)
+            if isinstance(value, np.integer):
+                object.__setattr__(self, name, value := int(value))
             if isinstance(value, bool) or not isinstance(value, int):
                 fail(name, f"must be an integer, got {value!r}")
         for name in ("positive_radius", "negative_radius", "lam", "beta", "alpha", "update_error_threshold",
@@ -251,6 +270,8 @@ class TrackerParams:
                      "velocity_damping", "antialias", "redetect_factor", "redetect_accept", "generative_weight",
                      "generative_lam"):
             value = getattr(self, name)
+            if isinstance(value, (np.integer, np.floating)) and not isinstance(value, np.bool_):
+                object.__setattr__(self, name, value := value.item())
             if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
                 fail(name, f"must be a finite number, got {value!r}")
         # Limits that refuse, before any work, values that would exhaust memory or overflow.
@@ -346,6 +367,52 @@ class TrackerParams:
         if self.generative_weight > 0 and self.patch_size < LOCAL_SIZE:
             fail("patch_size", f"must be >= {LOCAL_SIZE} (the local patches) when generative_weight > 0, "
                                f"got {self.patch_size}")
+        self._check_memory(fail)
+
+    def memory_terms(self) -> dict[str, float]:
+        """Bytes the largest per-frame arrays take, by the parameters that size them (an estimate
+        with the copies a frame makes; the frame itself and the interpreter come on top)."""
+        candidates = self.n_particles + self.redetect_count
+        vector = self.patch_size**2
+        templates = self.max_positive + self.n_negative
+        local = ((self.patch_size - LOCAL_SIZE) // self.generative_step + 1) ** 2
+        atoms_grid = ((self.patch_size - LOCAL_SIZE) // 2 + 1) ** 2
+        k = self.k_max
+        terms = {
+            # warped patches (float32), their centred copy, the particles' patches kept for the update
+            "n_particles, redetect_count, patch_size": 3.0 * candidates * vector * 4,
+            # [T_pos, T_neg] and its two halves (float32)
+            "max_positive, n_negative, patch_size": 3.0 * templates * vector * 4,
+            # candidate-template products (float64 and a float32 copy) and the scattered codes
+            "n_particles, redetect_count, max_positive, n_negative": 3.0 * candidates * templates * 8,
+            # the template Gram and the one it is updated from
+            "max_positive, n_negative": 3.0 * templates**2 * 8,
+            # the solvers' work arrays per candidate
+            "n_particles, redetect_count, dictionary_sizes": candidates * (len(self.dictionary_sizes) + 4) * k * k * 8 * 4,
+        }
+        if self.generative_weight > 0:
+            terms["generative_candidates, patch_size, generative_step"] = (
+                self.generative_candidates * local * (N_ATOMS * 4 + LOCAL_SIZE**2 * 4 + self.generative_neighbours * 24))
+            terms["patch_size"] = atoms_grid * LOCAL_SIZE**2 * 8 * 3  # the local atoms' source patches
+        return terms
+
+    def estimated_bytes(self) -> float:
+        """Estimated peak memory of one tracker with these parameters (see :meth:`memory_terms`)."""
+        return float(sum(self.memory_terms().values()))
+
+    def _check_memory(self, fail) -> None:
+        # The combination matters (particles x templates, particles x patch side^2): each value may be
+        # in range while their product is not. Checked against this machine's RAM, before any work.
+        from nrmlc.resources import gigabytes, physical_memory
+
+        limit = physical_memory()
+        need = self.estimated_bytes()
+        if limit is not None and need > limit:
+            terms = self.memory_terms()
+            names = max(terms, key=terms.get).split(", ")
+            values = ", ".join(f"{name}={getattr(self, name)!r}" for name in names)
+            fail(names[-1], f"with {values} a tracker needs about {gigabytes(need)}, more than this machine's "
+                            f"{gigabytes(limit)} of memory")
 
     @property
     def k_max(self) -> int:

@@ -96,6 +96,9 @@ def track_sequence(sequence, params: TrackerParams | None = None, seed: int = 0,
     TrackResult
     """
     tracker = NRMLCTracker(seed=seed, params=params)
+    if n_frames is not None and (isinstance(n_frames, bool) or not isinstance(n_frames, (int, np.integer))
+                                 or n_frames < 1):
+        raise ParameterError(f"n_frames must be an integer >= 1 (or None: all frames), got {n_frames!r}")
     if isinstance(recentre_every, bool) or not isinstance(recentre_every, (int, np.integer)) or recentre_every < 0:
         raise ParameterError(f"recentre_every must be an integer >= 0, got {recentre_every!r}")
     if recentre_every and recentre_boxes is None:
