@@ -272,3 +272,33 @@ def test_other_coding_modes_track(sequence, coding):
     if coding == "constrained":
         assert np.all(result.diagnostics["negative_share_c"][1:] == 0)
         assert np.all(result.diagnostics["negative_share_w"][1:] == 0)
+
+
+def test_scale_prior_is_a_gaussian_in_the_log_size_about_the_initial_box(sequence):
+    tracker = NRMLCTracker(seed=0, **FAST, scale_prior=0.25)
+    tracker.init(sequence.frame(0), sequence.init_box)
+    states = np.tile(tracker.state, (3, 1))
+    states[1, 2] *= 0.5                  # half the width and height
+    states[2, 4] *= 4.0                  # four times the height: twice the geometric-mean size
+    coded = {"log_confidence": np.zeros(3)}
+    tracker._add_scale_prior(coded, states)
+    expected = -0.5 * (np.log([1.0, 0.5, 2.0]) / 0.25) ** 2
+    np.testing.assert_allclose(coded["log_confidence"], expected, atol=1e-12)
+    # Off (the default and the paper): the confidence is left as it is.
+    off = NRMLCTracker(seed=0, **FAST)
+    off.init(sequence.frame(0), sequence.init_box)
+    coded = {"log_confidence": np.ones(3)}
+    off._add_scale_prior(coded, states)
+    assert coded["log_confidence"].tolist() == [1.0, 1.0, 1.0]
+
+
+def test_scale_prior_keeps_a_shrinking_box_nearer_the_initial_size(sequence):
+    from nrmlc.tracker.run import track_sequence as run
+
+    spread = {}
+    for sigma in (0.0, 0.05):
+        boxes = run(sequence, TrackerParams(**FAST, scale_prior=sigma), seed=1).boxes
+        size = np.sqrt(boxes[:, 2] * boxes[:, 3])
+        spread[sigma] = float(np.max(np.abs(np.log(size / size[0]))))
+    # A tight prior holds the size within a few percent of the initial one.
+    assert spread[0.05] < 0.15 and spread[0.05] <= spread[0.0] + 1e-9

@@ -317,6 +317,7 @@ class NRMLCTracker:
         self.frame_shape = frame.shape
         self.state = box_to_state(box, p.patch_size)
         self.initial_box = box
+        self.initial_log_size = float(np.log(self.state[2]) + 0.5 * np.log(self.state[4]))
         self.particles = None
         self.log_weights = None
         self.velocity = np.zeros(2)
@@ -511,6 +512,7 @@ class NRMLCTracker:
         states = self.sample_particles()
         candidates = self.patches(frame, states)
         coded = self.encode(candidates)
+        self._add_scale_prior(coded, states)
         n_local = len(states)
         best = int(np.argmax(coded["log_confidence"]))
         searched = p.redetect_count > 0 and coded["error_positive"][best] >= REDETECT_TRIGGER
@@ -556,10 +558,21 @@ class NRMLCTracker:
         extra = self._diffuse(np.tile(self.state, (p.redetect_count, 1)), p.redetect_count, p.redetect_factor)
         extra_candidates = self.patches(frame, extra)
         extra_coded = self.encode(extra_candidates)
+        self._add_scale_prior(extra_coded, extra)
         extra_coded["log_confidence"] = np.where(extra_coded["error_positive"] < p.redetect_accept,
                                                  extra_coded["log_confidence"], -np.inf)
         merged = {name: np.concatenate([coded[name], extra_coded[name]]) for name in coded}
         return np.vstack([states, extra]), np.vstack([candidates, extra_candidates]), merged
+
+    def _add_scale_prior(self, coded: dict, states: np.ndarray) -> None:
+        """Add the scale prior (``scale_prior``) to ``coded['log_confidence']`` in place:
+        a Gaussian in the log of the size (geometric mean of width and height) about the
+        initial box's size."""
+        sigma = self.params.scale_prior
+        if not sigma:
+            return
+        log_size = np.log(states[:, 2]) + 0.5 * np.log(states[:, 4])
+        coded["log_confidence"] = coded["log_confidence"] - 0.5 * ((log_size - self.initial_log_size) / sigma) ** 2
 
     def _estimate(self, states: np.ndarray, log_confidence: np.ndarray, best: int) -> np.ndarray:
         """(6,) estimate: the most confident particle, or the confidence-weighted mean of

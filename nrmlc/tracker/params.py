@@ -186,6 +186,12 @@ class TrackerParams:
         codes with a lasso).
     generative_interval : int
         The template histogram is updated every this many frames (SCM's ``demo.m``: 5).
+    scale_prior : float
+        A prior that anchors the scale (*ours*; 0 = off, the paper): log h gains
+        ``-0.5 * (log(size / size_0) / scale_prior)^2``, with size the geometric mean of the
+        box's width and height and size_0 the initial box's. It counters the feedback in which a
+        box a little smaller than the target is added to the positives, which then prefer the
+        smaller box (docs/FINDINGS.md, "Scale drift follows the likelihood").
     generative_step : int
         The candidates' local patches are cut every this many px (SCM's ``demo.m``: 2,
         196 patches of a 32x32 patch). *Ours*: 4, 49 patches (round 14). The atoms always
@@ -234,6 +240,7 @@ class TrackerParams:
     generative_lam: float = 1.0
     generative_interval: int = 5
     generative_step: int = 4
+    scale_prior: float = 0.0
 
     def __post_init__(self) -> None:
         def fail(name: str, message: str) -> None:
@@ -268,7 +275,7 @@ class TrackerParams:
         for name in ("positive_radius", "negative_radius", "lam", "beta", "alpha", "update_error_threshold",
                      "coefficient_tolerance", "positive_sigma", "negative_push", "wide_share", "wide_factor",
                      "velocity_damping", "antialias", "redetect_factor", "redetect_accept", "generative_weight",
-                     "generative_lam"):
+                     "generative_lam", "scale_prior"):
             value = getattr(self, name)
             if isinstance(value, (np.integer, np.floating)) and not isinstance(value, np.bool_):
                 object.__setattr__(self, name, value := value.item())
@@ -332,6 +339,8 @@ class TrackerParams:
             fail("generative_step", f"must be in 1..{LOCAL_SIZE}, got {self.generative_step}")
         if not 1 <= self.estimate_count <= self.n_particles:
             fail("estimate_count", f"must be in 1..n_particles ({self.n_particles}), got {self.estimate_count}")
+        if not 0 <= self.scale_prior <= 100:
+            fail("scale_prior", f"must be in [0, 100] (0: off), got {self.scale_prior}")
         if not 0 <= self.velocity_damping <= 1:
             fail("velocity_damping", f"must be in [0, 1], got {self.velocity_damping}")
         if not 0 <= self.negative_push <= 2:
