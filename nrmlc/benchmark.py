@@ -371,10 +371,14 @@ def run_benchmark(data_root, out, params=None, seeds=(0,), sequences: list[str] 
     todo = [RunSpec(s, params, seed, max_frames, label=s.name) for s in chosen for seed in seeds
             if not finished(s, seed)]
     total = len(chosen) * len(seeds)
+    cache = cache if cache is not None else RunCache()
+    # Said before the work starts: a run the shared cache holds takes no time and no worker.
+    in_cache = sum(cache.has(spec) for spec in todo)
     log(f"benchmark: {len(chosen)} sequences x {len(seeds)} seeds -> {out}: "
-        f"{total - len(todo)} finished, {len(todo)} to run")
+        f"{total - len(todo)} finished, {len(todo)} to run"
+        + (f" ({in_cache} of them from the run cache {cache.folder}, {len(todo) - in_cache} to compute)"
+           if todo else ""))
     if todo:
-        cache = cache if cache is not None else RunCache()
         version = code_version()
 
         def record(spec, result) -> None:

@@ -207,7 +207,7 @@ def test_benchmark_writes_otb_layout_and_resumes(data_root, tmp_path, capsys):
 
     code, table, err = _benchmark(data_root, out, tmp_path / "cache2", capsys, "--seeds", "0-1")
     assert code == 0, err
-    assert "1 finished, 3 to run" in err
+    assert "1 finished, 3 to run (0 of them from the run cache" in err
     # Only the three missing runs were computed (the second cache holds exactly those).
     assert len(list((tmp_path / "cache2").glob("*.npz"))) == 3
     assert (out / f"{names[0]}.txt").read_bytes() == first_bytes
@@ -223,6 +223,11 @@ def test_benchmark_writes_otb_layout_and_resumes(data_root, tmp_path, capsys):
     assert "4 finished, 0 to run" in err
     assert not (tmp_path / "cache3").exists() or not any((tmp_path / "cache3").iterdir())
     assert {p: p.stat().st_mtime_ns for p in out.rglob("*.txt")} == stamps
+    # Another folder on the second cache: every run is said to come from the cache.
+    code, _, err = _benchmark(data_root, tmp_path / "other", tmp_path / "cache2", capsys, "--seeds", "0-1",
+                              "--sequences", ",".join(names[1:]))
+    assert code == 0, err
+    assert f"0 finished, {2 * len(names[1:])} to run ({2 * len(names[1:])} of them from the run cache" in err
 
     # The summary holds what evaluate() gives on the written files.
     summary = json.loads((out / "summary.json").read_text())
