@@ -302,3 +302,14 @@ def test_scale_prior_keeps_a_shrinking_box_nearer_the_initial_size(sequence):
         spread[sigma] = float(np.max(np.abs(np.log(size / size[0]))))
     # A tight prior holds the size within a few percent of the initial one.
     assert spread[0.05] < 0.15 and spread[0.05] <= spread[0.0] + 1e-9
+
+
+def test_a_misspelt_parameter_gets_a_suggestion():
+    from nrmlc.tracker.params import parse_param_assignment
+
+    with pytest.raises(ParameterError, match=r"unknown parameter 'lamda'; did you mean lam\?"):
+        parse_param_assignment("lamda=0.5")
+    with pytest.raises(ParameterError, match=r"n_particle; did you mean n_particles\?"):
+        TrackerParams().replace(n_particle=10)
+    with pytest.raises(ParameterError, match=r"unknown parameter 'zzz'$"):
+        parse_param_assignment("zzz=1")

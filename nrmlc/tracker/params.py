@@ -436,7 +436,8 @@ class TrackerParams:
         """A copy with some fields changed (validated)."""
         unknown = set(changes) - {f.name for f in dataclasses.fields(self)}
         if unknown:
-            raise ParameterError(f"unknown parameter(s): {', '.join(sorted(unknown))}")
+            raise ParameterError(f"unknown parameter(s): {', '.join(sorted(unknown))}"
+                                 + _did_you_mean(sorted(unknown)[0]))
         return dataclasses.replace(self, **changes)
 
     def as_dict(self) -> dict:
@@ -471,6 +472,14 @@ PRESETS: dict[str, dict] = {
 }
 
 
+def _did_you_mean(name: str) -> str:
+    """'; did you mean lam?' for a near miss of a field's name, else ''."""
+    import difflib
+
+    close = difflib.get_close_matches(name, [f.name for f in dataclasses.fields(TrackerParams)], n=1, cutoff=0.6)
+    return f"; did you mean {close[0]}?" if close else ""
+
+
 def parse_param_assignment(text: str) -> tuple[str, object]:
     """Parse a ``name=value`` string (CLI ``--param``) into a typed pair.
 
@@ -482,7 +491,7 @@ def parse_param_assignment(text: str) -> tuple[str, object]:
     name, raw = (part.strip() for part in text.split("=", 1))
     defaults = {f.name: f.default for f in dataclasses.fields(TrackerParams)}
     if name not in defaults:
-        raise ParameterError(f"--param {text!r}: unknown parameter {name!r}")
+        raise ParameterError(f"--param {text!r}: unknown parameter {name!r}" + _did_you_mean(name))
     default = defaults[name]
     try:
         if isinstance(default, bool):
