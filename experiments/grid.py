@@ -105,11 +105,16 @@ class Context:
                 from nrmlc.data import synthetic_suite
 
                 sequences = synthetic_suite(n_sequences=self.n_synthetic)
+            elif self.only_sequences is not None:
+                from nrmlc.benchmark import select_sequences
+
+                # Only the named folders are opened: the others' warnings are not this run's.
+                sequences = select_sequences(self.data_root, list(self.only_sequences))
             else:
                 from nrmlc.data import list_sequences
 
                 sequences = list_sequences(self.data_root)
-            if self.only_sequences is not None:
+            if self.only_sequences is not None and self.is_synthetic:
                 from nrmlc.errors import DataError
 
                 by_name = {s.name.lower(): s for s in sequences}

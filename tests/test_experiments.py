@@ -319,3 +319,41 @@ def test_peers_option(tmp_path, monkeypatch):
     with pytest.raises(DataError, match="--peers"):
         context_from_args(["--peers", str(tmp_path / "absent")])
     assert run_all.main(["--peers", str(tmp_path / "absent"), "--dry-run"]) == 2
+
+
+def test_a_sequence_subset_opens_only_its_folders(tmp_path, recwarn):
+    import warnings
+
+    from experiments.grid import Context
+    from nrmlc.data import synthetic_suite, write_otb_sequence
+
+    for sequence in synthetic_suite(n_frames=5, n_sequences=2):
+        write_otb_sequence(sequence, tmp_path / sequence.name)
+    truth = tmp_path / "synth-02" / "groundtruth_rect.txt"
+    truth.write_text("\n".join(truth.read_text().splitlines()[:3]) + "\n")  # 3 boxes for 5 frames: a warning
+    warnings.simplefilter("always")
+    assert [s.name for s in Context(data_root=tmp_path, only_sequences=("synth-01",)).sequences()] == ["synth-01"]
+    assert not [w for w in recwarn if "synth-02" in str(w.message)]
+    assert len(Context(data_root=tmp_path).sequences()) == 2
+    assert [w for w in recwarn if "synth-02" in str(w.message)]
+
+
+def test_make_figures_prints_warnings_as_one_line(tmp_path, capsys):
+    import warnings
+
+    def fake_main(argv):
+        warnings.warn("a ground-truth file is short")
+        return 0
+
+    original = run_all._main
+    run_all._main = fake_main
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("always")
+            # What Python's own showwarning does (pytest replaces it with a recorder).
+            warnings.showwarning = lambda message, category, filename, lineno, file=None, line=None: \
+                sys.stderr.write(warnings.formatwarning(message, category, filename, lineno, line))
+            assert run_all.main([]) == 0
+    finally:
+        run_all._main = original
+    assert capsys.readouterr().err == "warning: a ground-truth file is short\n"
