@@ -330,7 +330,14 @@ def context_from_namespace(args) -> Context:
 
 def run_script(module, context) -> dict:
     """What ``run_all`` does with every script: collect, plot, write the numbers; returns
-    the script's section of the report."""
+    the script's section of the report.
+
+    A script whose ``applies(context)`` returns a reason (a string) instead of None has
+    nothing to show on this data: no figure is drawn and its section says why.
+    """
+    reason = module.applies(context) if hasattr(module, "applies") else None
+    if reason is not None:
+        return {"title": module.TITLE, "figures": [], "markdown": f"Not drawn on this data: {reason}"}
     data = module.collect(context)
     module.plot(data, context.output(module.STEM, ".png"))
     return module.report(context, data)

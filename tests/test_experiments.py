@@ -357,3 +357,27 @@ def test_make_figures_prints_warnings_as_one_line(tmp_path, capsys):
     finally:
         run_all._main = original
     assert capsys.readouterr().err == "warning: a ground-truth file is short\n"
+
+
+def test_a_script_with_nothing_to_show_draws_no_placeholder(tmp_path):
+    from experiments import ablation_per_sequence_motion as motion
+    from experiments.grid import Context, run_script
+
+    context = Context(figures_dir=tmp_path, n_synthetic=1)
+    section = run_script(motion, context)
+    assert section["figures"] == [] and "Not drawn on this data" in section["markdown"]
+    assert not (tmp_path / f"{motion.STEM}.png").exists()
+
+
+def test_fig4_on_synthetic_data_leaves_out_the_papers_references(tmp_path, monkeypatch):
+    from experiments import fig4_lambda_sweep as fig4
+
+    labels = {}
+    monkeypatch.setattr(fig4, "save_figure", lambda fig, path, **kwargs: labels.__setitem__(
+        path, [t.get_text() for t in fig.axes[0].get_legend().get_texts()]))
+    points = [{"coding": "regularized", "lam": lam, "overlap": 0.8, "overlap_std": 0.01} for lam in (0.0, 1.0)]
+    points.append({"coding": "plain", "lam": 0.0, "overlap": 0.7, "overlap_std": 0.01})
+    for synthetic in (True, False):
+        fig4.plot({"points": points, "sequences": ["s"], "seeds": [0], "synthetic": synthetic}, synthetic)
+    assert not any(label.startswith("paper") for label in labels[True])
+    assert sum(label.startswith("paper") for label in labels[False]) == 2
