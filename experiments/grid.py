@@ -155,8 +155,7 @@ class Context:
         """The 'paper' preset (the paper as printed) with the ``--param`` changes: what the
         experiments about the paper's own claims (Theorem 1, Figs. 1 and 2, statistics,
         occlusion) run."""
-        paper = getattr(TrackerParams, "paper", None)
-        return paper(**self.param_changes) if paper is not None else self.base_params
+        return TrackerParams.paper(**self.param_changes)
 
     def n_frames(self, sequence) -> int:
         """Frames tracked in ``sequence`` under :attr:`max_frames`."""
@@ -245,7 +244,7 @@ def score(boxes, sequence, n_frames: int | None = None):
 
 
 def params_differences(params: TrackerParams, reference: TrackerParams | None = None) -> dict:
-    """Fields of ``params`` that differ from ``reference`` (default: the paper's defaults)."""
+    """Fields of ``params`` that differ from ``reference`` (default: ``TrackerParams()``, the chosen defaults)."""
     reference = TrackerParams() if reference is None else reference
     mine, theirs = params.as_dict(), reference.as_dict()
     return {k: v for k, v in mine.items() if theirs.get(k) != v}
