@@ -92,6 +92,14 @@ def configurations(context) -> list[tuple[object, object, object]]:
     return out
 
 
+def applies(context) -> str | None:
+    """None when a given sequence has the lineage's motion parameters; else why not."""
+    if configurations(context):
+        return None
+    return (f"none of the given sequences is in the lineage's `trackparam.m` ({', '.join(CLASSIC_MOTION)}), "
+            "so there is nothing to compare.")
+
+
 def runs(context) -> list:
     """The per-sequence runs and the default ones (the latter are Table II's, shared through the cache)."""
     return [spec for sequence, base, classic in configurations(context)

@@ -18,7 +18,7 @@ Families, each against the default tracker (the first row of each):
 - preset: the default tracker vs ``TrackerParams.paper()`` (the paper as printed);
 - scale noise of the motion model (which the paper does not state): 1% of the
   size per frame (default) vs 0.25%, 0.5% and 2%;
-- particles (not stated either): 600 (default) vs half and twice as many;
+- particles (not stated either): the default's count vs half and twice as many;
 - the confidence scale alpha (under condensation the likelihood's sharpness):
   the default vs the paper's 2.5;
 - any other value in which the default departs from the paper preset (e.g. a share of
@@ -142,10 +142,9 @@ def families(context) -> list[tuple[str, list[tuple[str, object]]]]:
             else:
                 rows.append((str(choice), base.replace(**{field: choice})))
         out.append((family, rows))
-    if hasattr(TrackerParams, "paper"):
-        paper_preset = TrackerParams.paper()
-        if paper_preset != base:
-            out.append(("preset", [("default", base), ("paper (as printed)", paper_preset)]))
+    paper_preset = TrackerParams.paper()
+    if paper_preset != base:
+        out.append(("preset", [("default", base), ("paper (as printed)", paper_preset)]))
     out += [
         ("scale noise", [(f"{100 * base.motion_sigmas[2]:g}% (default)", base)]
          + [(f"{100 * sigma:g}%", base.replace(motion_sigmas=_with_scale_sigma(base.motion_sigmas, sigma)))
@@ -156,7 +155,7 @@ def families(context) -> list[tuple[str, list[tuple[str, object]]]]:
          + ([(f"α = {PAPER_ALPHA:g} (paper)", base.replace(alpha=PAPER_ALPHA))] if base.alpha != PAPER_ALPHA else [])),
     ]
     # Any other value in which the default departs from the paper preset: a row with the paper's.
-    differing = params_differences(TrackerParams.paper(), base) if hasattr(TrackerParams, "paper") else {}
+    differing = params_differences(TrackerParams.paper(), base)
     covered = {field for _, field in switches()} | set(OWN_FAMILIES) | {
         "alpha", "motion_sigmas", "n_particles", "dictionary_sizes", "lam", "beta", "positive_sigma",
         "positive_radius", "negative_radius"}

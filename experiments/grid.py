@@ -105,11 +105,16 @@ class Context:
                 from nrmlc.data import synthetic_suite
 
                 sequences = synthetic_suite(n_sequences=self.n_synthetic)
+            elif self.only_sequences is not None:
+                from nrmlc.benchmark import select_sequences
+
+                # Only the named folders are opened: the others' warnings are not this run's.
+                sequences = select_sequences(self.data_root, list(self.only_sequences))
             else:
                 from nrmlc.data import list_sequences
 
                 sequences = list_sequences(self.data_root)
-            if self.only_sequences is not None:
+            if self.only_sequences is not None and self.is_synthetic:
                 from nrmlc.errors import DataError
 
                 by_name = {s.name.lower(): s for s in sequences}
@@ -150,8 +155,7 @@ class Context:
         """The 'paper' preset (the paper as printed) with the ``--param`` changes: what the
         experiments about the paper's own claims (Theorem 1, Figs. 1 and 2, statistics,
         occlusion) run."""
-        paper = getattr(TrackerParams, "paper", None)
-        return paper(**self.param_changes) if paper is not None else self.base_params
+        return TrackerParams.paper(**self.param_changes)
 
     def n_frames(self, sequence) -> int:
         """Frames tracked in ``sequence`` under :attr:`max_frames`."""
@@ -240,7 +244,7 @@ def score(boxes, sequence, n_frames: int | None = None):
 
 
 def params_differences(params: TrackerParams, reference: TrackerParams | None = None) -> dict:
-    """Fields of ``params`` that differ from ``reference`` (default: the paper's defaults)."""
+    """Fields of ``params`` that differ from ``reference`` (default: ``TrackerParams()``, the chosen defaults)."""
     reference = TrackerParams() if reference is None else reference
     mine, theirs = params.as_dict(), reference.as_dict()
     return {k: v for k, v in mine.items() if theirs.get(k) != v}
@@ -325,7 +329,14 @@ def context_from_namespace(args) -> Context:
 
 def run_script(module, context) -> dict:
     """What ``run_all`` does with every script: collect, plot, write the numbers; returns
-    the script's section of the report."""
+    the script's section of the report.
+
+    A script whose ``applies(context)`` returns a reason (a string) instead of None has
+    nothing to show on this data: no figure is drawn and its section says why.
+    """
+    reason = module.applies(context) if hasattr(module, "applies") else None
+    if reason is not None:
+        return {"title": module.TITLE, "figures": [], "markdown": f"Not drawn on this data: {reason}"}
     data = module.collect(context)
     module.plot(data, context.output(module.STEM, ".png"))
     return module.report(context, data)

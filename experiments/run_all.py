@@ -193,7 +193,22 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv=None) -> int:
-    """Run everything; return the exit status (0, or 1 if any script failed)."""
+    """Run everything; return the exit status (0, or 1 if any script failed).
+
+    Warnings are printed as one ``warning: ...`` line each, without the source line (as the
+    ``nrmlc`` command prints them); the caller's formatting is restored on return.
+    """
+    import warnings
+
+    format_warning = warnings.formatwarning
+    warnings.formatwarning = lambda message, category, *rest: f"warning: {message}\n"
+    try:
+        return _main(argv)
+    finally:
+        warnings.formatwarning = format_warning
+
+
+def _main(argv=None) -> int:
     start = time.perf_counter()
     parser = build_parser()
     args = parser.parse_args(argv)

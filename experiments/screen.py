@@ -8,6 +8,11 @@ it prints the paired difference to the baseline (:func:`experiments.devset.paire
 on half A, half B and the synthetic suite, and the adoption rule's verdict
 (:func:`experiments.devset.adopted`); ``--json`` writes the same with every run's overlap,
 ``--markdown`` the table.
+
+``--baseline-version V`` pairs the variants with the baseline's runs stored at another code
+version V (a variant that adds a switch changes the code version, but not the default's boxes):
+the baseline's synthetic-suite runs are first computed at this version and must equal V's bit
+for bit, and V's real-target runs must all be in the cache; otherwise the screen stops.
 """
 from __future__ import annotations
 
@@ -60,6 +65,36 @@ def per_seed_overlaps(results, specs) -> tuple[dict, dict]:
     return overlaps, scales
 
 
+def baseline_at_version(cache: RunCache, specs: list, version: str, jobs) -> list:
+    """The baseline's results as stored at code version ``version`` (see the module docstring).
+
+    Raises
+    ------
+    NrmlcError
+        When a synthetic run differs between the two versions, or a run is not stored at ``version``.
+    """
+    import numpy as np
+
+    other = RunCache(cache.folder)
+    other.version = version
+    missing = [spec.label or f"{spec.sequence.name} seed {spec.seed}" for spec in specs
+               if other._readable(other.path(spec)) is None]
+    if missing:
+        raise NrmlcError(f"--baseline-version {version}: {len(missing)} baseline runs are not in {cache.folder} "
+                         f"(e.g. {missing[0]})")
+    checks = [spec for spec in specs if isinstance(spec.sequence, SyntheticSequence)]
+    if not checks:
+        raise NrmlcError("--baseline-version needs the synthetic suite (--synthetic N) to check the versions")
+    here, there = cache.run(checks, jobs=jobs), other.run(checks, jobs=jobs)
+    for spec, a, b in zip(checks, here, there):
+        if not np.array_equal(a.boxes, b.boxes):
+            raise NrmlcError(f"--baseline-version {version}: {spec.sequence.name} seed {spec.seed} gives other "
+                             f"boxes at {cache.version}; the baseline cannot be carried over")
+    print(f"baseline: {len(checks)} synthetic runs bit-identical at {cache.version} and {version}; "
+          f"the other {len(specs) - len(checks)} runs read at {version}", file=sys.stderr)
+    return other.run(specs, jobs=jobs)
+
+
 def format_screen(rows: list[dict]) -> str:
     """Markdown: one row per variant, the paired differences on A, B, the synthetic suite, the verdict."""
     lines = ["| variant | half A | half B | synthetic suite | all real | collapsed (A, B) | verdict |",
@@ -88,6 +123,8 @@ def main(argv=None) -> int:
     parser.add_argument("--baseline-preset", default="default")
     parser.add_argument("--baseline", default="", metavar="PARAM=VALUE,...", help="changes of the baseline")
     parser.add_argument("--variant", nargs=2, action="append", default=[], metavar=("NAME", "CHANGES"))
+    parser.add_argument("--baseline-version", default=None, metavar="CODE_VERSION",
+                        help="read the baseline's runs at this code version, after checking them bit for bit")
     parser.add_argument("--jobs", type=int, default=None)
     parser.add_argument("--cache", default=str(DEFAULT_CACHE))
     parser.add_argument("--json", default=None)
@@ -111,7 +148,10 @@ def main(argv=None) -> int:
     batches = [specs_for(sequences, params, seeds, n_frames=args.max_frames) for _, params in [("baseline", baseline)] + variants]
     # One configuration at a time (the baseline first), so that an interrupted screen has
     # finished whole configurations, which a rerun reads from the cache.
-    runs = [per_seed_overlaps(cache.run(batch, jobs=args.jobs), batch) for batch in batches]
+    first = (baseline_at_version(cache, batches[0], args.baseline_version, args.jobs)
+             if args.baseline_version else cache.run(batches[0], jobs=args.jobs))
+    runs = [per_seed_overlaps(first, batches[0])]
+    runs += [per_seed_overlaps(cache.run(batch, jobs=args.jobs), batch) for batch in batches[1:]]
     rows = []
     halves = {label: names for label, names in groups.items() if label in ("A", "B")}
 

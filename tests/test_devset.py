@@ -182,3 +182,29 @@ def test_tracked_scale_is_the_median_over_the_last_quarter():
     assert devset.tracked_scale(boxes, Truth()) == pytest.approx(0.5)
     assert devset.tracked_scale(boxes, Truth(), share=1.0) == pytest.approx(1.0)
     assert devset.collapsed({"t": [0.5, 0.6, 0.9], "u": [0.8, 0.9, 0.5]}, ["t", "u"]) == ["t"]
+
+
+def test_a_baseline_is_carried_from_another_code_version_only_when_bit_identical(tmp_path):
+    from experiments import screen
+    from experiments.grid import specs_for
+    from nrmlc.data import synthetic_suite
+    from nrmlc.runner import RunCache
+    from nrmlc.tracker.params import TrackerParams
+
+    cache = RunCache(tmp_path / "cache")
+    specs = specs_for(synthetic_suite(n_frames=6, n_sequences=1), TrackerParams(n_particles=40), (0,), n_frames=6)
+    here = cache.run(specs, jobs=1, progress=False)
+    with pytest.raises(NrmlcError, match="1 baseline runs are not in"):
+        screen.baseline_at_version(cache, specs, "0" * 16, jobs=1)
+    # The same runs stored under another version: read from there.
+    other = RunCache(tmp_path / "cache")
+    other.version = "0" * 16
+    arrays = dict(np.load(cache.path(specs[0])))
+    other.store(specs[0], arrays)
+    carried = screen.baseline_at_version(cache, specs, "0" * 16, jobs=1)
+    assert np.array_equal(carried[0].boxes, here[0].boxes)
+    # Other boxes under that version: refused by name.
+    arrays["boxes"] = arrays["boxes"] + 1.0
+    other.store(specs[0], arrays)
+    with pytest.raises(NrmlcError, match="synth-01 seed 0 gives other boxes"):
+        screen.baseline_at_version(cache, specs, "0" * 16, jobs=1)

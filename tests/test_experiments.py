@@ -319,3 +319,65 @@ def test_peers_option(tmp_path, monkeypatch):
     with pytest.raises(DataError, match="--peers"):
         context_from_args(["--peers", str(tmp_path / "absent")])
     assert run_all.main(["--peers", str(tmp_path / "absent"), "--dry-run"]) == 2
+
+
+def test_a_sequence_subset_opens_only_its_folders(tmp_path, recwarn):
+    import warnings
+
+    from experiments.grid import Context
+    from nrmlc.data import synthetic_suite, write_otb_sequence
+
+    for sequence in synthetic_suite(n_frames=5, n_sequences=2):
+        write_otb_sequence(sequence, tmp_path / sequence.name)
+    truth = tmp_path / "synth-02" / "groundtruth_rect.txt"
+    truth.write_text("\n".join(truth.read_text().splitlines()[:3]) + "\n")  # 3 boxes for 5 frames: a warning
+    warnings.simplefilter("always")
+    assert [s.name for s in Context(data_root=tmp_path, only_sequences=("synth-01",)).sequences()] == ["synth-01"]
+    assert not [w for w in recwarn if "synth-02" in str(w.message)]
+    assert len(Context(data_root=tmp_path).sequences()) == 2
+    assert [w for w in recwarn if "synth-02" in str(w.message)]
+
+
+def test_make_figures_prints_warnings_as_one_line(tmp_path, capsys):
+    import warnings
+
+    def fake_main(argv):
+        warnings.warn("a ground-truth file is short")
+        return 0
+
+    original = run_all._main
+    run_all._main = fake_main
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("always")
+            # What Python's own showwarning does (pytest replaces it with a recorder).
+            warnings.showwarning = lambda message, category, filename, lineno, file=None, line=None: \
+                sys.stderr.write(warnings.formatwarning(message, category, filename, lineno, line))
+            assert run_all.main([]) == 0
+    finally:
+        run_all._main = original
+    assert capsys.readouterr().err == "warning: a ground-truth file is short\n"
+
+
+def test_a_script_with_nothing_to_show_draws_no_placeholder(tmp_path):
+    from experiments import ablation_per_sequence_motion as motion
+    from experiments.grid import Context, run_script
+
+    context = Context(figures_dir=tmp_path, n_synthetic=1)
+    section = run_script(motion, context)
+    assert section["figures"] == [] and "Not drawn on this data" in section["markdown"]
+    assert not (tmp_path / f"{motion.STEM}.png").exists()
+
+
+def test_fig4_on_synthetic_data_leaves_out_the_papers_references(tmp_path, monkeypatch):
+    from experiments import fig4_lambda_sweep as fig4
+
+    labels = {}
+    monkeypatch.setattr(fig4, "save_figure", lambda fig, path, **kwargs: labels.__setitem__(
+        path, [t.get_text() for t in fig.axes[0].get_legend().get_texts()]))
+    points = [{"coding": "regularized", "lam": lam, "overlap": 0.8, "overlap_std": 0.01} for lam in (0.0, 1.0)]
+    points.append({"coding": "plain", "lam": 0.0, "overlap": 0.7, "overlap_std": 0.01})
+    for synthetic in (True, False):
+        fig4.plot({"points": points, "sequences": ["s"], "seeds": [0], "synthetic": synthetic}, synthetic)
+    assert not any(label.startswith("paper") for label in labels[True])
+    assert sum(label.startswith("paper") for label in labels[False]) == 2
