@@ -125,6 +125,8 @@ def main(argv=None) -> int:
     parser.add_argument("--variant", nargs=2, action="append", default=[], metavar=("NAME", "CHANGES"))
     parser.add_argument("--baseline-version", default=None, metavar="CODE_VERSION",
                         help="read the baseline's runs at this code version, after checking them bit for bit")
+    parser.add_argument("--cached-only", action="store_true",
+                        help="compute nothing: report the variants whose runs are all in the cache, skip the rest")
     parser.add_argument("--jobs", type=int, default=None)
     parser.add_argument("--cache", default=str(DEFAULT_CACHE))
     parser.add_argument("--json", default=None)
@@ -151,6 +153,13 @@ def main(argv=None) -> int:
     first = (baseline_at_version(cache, batches[0], args.baseline_version, args.jobs)
              if args.baseline_version else cache.run(batches[0], jobs=args.jobs))
     runs = [per_seed_overlaps(first, batches[0])]
+    if args.cached_only:
+        complete = [all(cache.has(spec) for spec in batch) for batch in batches[1:]]
+        skipped = [name for (name, _), done in zip(variants, complete) if not done]
+        if skipped:
+            print(f"not in the cache yet, skipped: {', '.join(skipped)}", file=sys.stderr)
+        variants = [v for v, done in zip(variants, complete) if done]
+        batches = batches[:1] + [b for b, done in zip(batches[1:], complete) if done]
     runs += [per_seed_overlaps(cache.run(batch, jobs=args.jobs), batch) for batch in batches[1:]]
     rows = []
     halves = {label: names for label, names in groups.items() if label in ("A", "B")}

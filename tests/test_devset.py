@@ -122,7 +122,13 @@ def test_screen_gives_each_variant_its_paired_differences_and_verdict(tmp_path, 
     # Every development target is asked for by default: none is in an empty root.
     assert screen.main(argv) == 2
     assert "no sequences" in capsys.readouterr().err
-    assert screen.main(argv + ["--sequences", "", "--max-frames", "8"]) == 0
+    # --cached-only computes nothing but the baseline... which is not cached either: only it runs.
+    small = ["--sequences", "", "--max-frames", "8"]
+    assert screen.main(argv + small + ["--cached-only"]) == 0
+    captured = capsys.readouterr()
+    assert "skipped: low_alpha, same" not in captured.err and "skipped: low_alpha" in captured.err
+    assert "| low_alpha |" not in captured.out
+    assert screen.main(argv + small) == 0
     text = capsys.readouterr().out
     assert "| low_alpha |" in text and "| same | - | - | +0.000 ± nan (0↑ 0↓) | - | 0, 0 |" in text
     numbers = json.loads(out.read_text())
