@@ -35,7 +35,7 @@ from nrmlc import io
 from nrmlc.geometry import usable_boxes
 from nrmlc.metrics import overlaps
 from nrmlc.runner import description_key, frames_tracked, sequence_identity
-from nrmlc.tracker.nrmlc_tracker import NRMLCTracker
+from nrmlc.tracker.algorithm import NRMLCTracker
 from nrmlc.tracker.params import TrackerParams
 
 STEM = "ablation_oracle_gate"

@@ -342,7 +342,7 @@ def _one_pass_parts(args: tuple, repeats: int) -> dict:
 
 def bench_stages(sequence, counts, warm_frames: int = 20, timed_frames: int = 60, floor_repeats: int = 15) -> list:
     """Per-stage ms per frame inside real ``update`` calls, and each stage's floor (ms per frame)."""
-    from nrmlc.tracker.nrmlc_tracker import NRMLCTracker
+    from nrmlc.tracker.algorithm import NRMLCTracker
     from nrmlc.tracker.params import TrackerParams
 
     frames = _frames(sequence, warm_frames + timed_frames + 1)
@@ -398,7 +398,7 @@ def bench_stages(sequence, counts, warm_frames: int = 20, timed_frames: int = 60
 
 def _warmed_tracker(sequence, n_frames: int):
     """A tracker run over the first frames, so its templates include updates."""
-    from nrmlc.tracker.nrmlc_tracker import NRMLCTracker
+    from nrmlc.tracker.algorithm import NRMLCTracker
 
     tracker = NRMLCTracker(seed=0)
     frames = [sequence.frame(i) for i in range(n_frames + 1)]
@@ -516,7 +516,7 @@ def bench_kernels(sequence, counts, repeats: int, reference_repeats: int, warm_f
 
 def _nrmlc_fps(sequence, frames, params) -> float:
     """Tracker fps over preloaded frames (decoding excluded), init included, as track_sequence counts."""
-    from nrmlc.tracker.nrmlc_tracker import NRMLCTracker
+    from nrmlc.tracker.algorithm import NRMLCTracker
 
     tracker = NRMLCTracker(seed=0, params=params)
     start = time.perf_counter()
@@ -547,7 +547,7 @@ def bench_end_to_end(sequence, n_frames: int | None, rounds: int) -> list[dict]:
     """
     from experiments.ablations import TRIAL_VALUES
     from nrmlc.tracker.params import TrackerParams
-    from nrmlc.tracker.run import track_sequence
+    from nrmlc.tracker.loop import track_sequence
 
     total = len(sequence) if n_frames is None else min(n_frames, len(sequence))
     frames = _frames(sequence, total)
@@ -590,7 +590,7 @@ setup, data, n_frames = sys.argv[1], sys.argv[2], int(sys.argv[3])
 if setup in ("set_threads first", "serial", "spin-wait"):
     from nrmlc.config import set_threads
     set_threads(1 if setup == "serial" else None)
-from nrmlc.tracker.nrmlc_tracker import NRMLCTracker
+from nrmlc.tracker.algorithm import NRMLCTracker
 if setup == "set_threads after import":
     from nrmlc.config import set_threads
     set_threads(None)
@@ -655,7 +655,7 @@ _STARTUP_CHILD = r"""
 import json, time
 start = time.perf_counter()
 import numpy as np
-from nrmlc.tracker.nrmlc_tracker import NRMLCTracker
+from nrmlc.tracker.algorithm import NRMLCTracker
 imported = time.perf_counter()
 rng = np.random.default_rng(0)
 frame = rng.random((120, 160)).astype(np.float32)

@@ -226,7 +226,7 @@ class Collection:
         return description_key(self.description(version))
 
     def execute(self) -> dict:
-        from nrmlc.tracker.nrmlc_tracker import NRMLCTracker
+        from nrmlc.tracker.algorithm import NRMLCTracker
 
         sequence, params, seed, budget = self.sequence, self.params, self.seed, self.budget
         n_frames = self.frames()

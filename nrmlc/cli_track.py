@@ -85,7 +85,7 @@ def run_track(args: argparse.Namespace) -> int:
     from nrmlc.metrics import evaluate
     from nrmlc.tracker.params import TrackerParams, parse_param_assignment
     from nrmlc.errors import interrupt_requested
-    from nrmlc.tracker.run import track_sequence
+    from nrmlc.tracker.loop import track_sequence
 
     overrides = dict(parse_param_assignment(text) for text in args.param)
     for option, name, value in (("--particles", "n_particles", args.particles), ("--coding", "coding", args.coding),

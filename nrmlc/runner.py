@@ -58,7 +58,7 @@ import numpy as np
 from nrmlc import io
 from nrmlc.errors import ParameterError
 from nrmlc.tracker.params import TrackerParams
-from nrmlc.tracker.run import TrackResult, track_sequence
+from nrmlc.tracker.loop import TrackResult, track_sequence
 
 #: Sources whose change can change a run's boxes. ``data`` is included because it
 #: decodes and converts the frames (and renders the synthetic ones) and reads the

@@ -22,7 +22,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from nrmlc.tracker.nrmlc_tracker import NRMLCTracker
+from nrmlc.tracker.algorithm import NRMLCTracker
 from nrmlc.tracker.params import TrackerParams
 
 try:  # the toolkit is optional: nrmlc does not need it

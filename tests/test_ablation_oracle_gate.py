@@ -7,7 +7,7 @@ import pytest
 
 from experiments.ablation_oracle_gate import OracleGateRun, OracleGateTracker
 from nrmlc.data import synthetic_suite
-from nrmlc.tracker.nrmlc_tracker import NRMLCTracker
+from nrmlc.tracker.algorithm import NRMLCTracker
 from nrmlc.tracker.params import TrackerParams
 
 N = 30

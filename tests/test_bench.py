@@ -16,7 +16,7 @@ from nrmlc.config import set_threads
 n_threads = set_threads(int(sys.argv[1]))
 from nrmlc.data import synthetic_suite
 from nrmlc.tracker.params import TrackerParams
-from nrmlc.tracker.run import track_sequence
+from nrmlc.tracker.loop import track_sequence
 sequence = synthetic_suite(n_frames=21)[0]
 lines = [str(n_threads)]
 for coding in ("regularized", "constrained"):

@@ -386,7 +386,7 @@ def test_subprocess_warnings_are_one_line_each(seq, tmp_path):
 
 
 def test_track_preset_paper_changes_the_parameters_and_options_still_apply(seq, tmp_path, capsys, monkeypatch):
-    import nrmlc.tracker.run as run
+    import nrmlc.tracker.loop as run
 
     seen = []
     real = run.track_sequence

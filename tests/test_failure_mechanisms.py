@@ -11,7 +11,7 @@ from experiments import failure_mechanisms as script
 from experiments.grid import Context, context_from_args, run_script
 from nrmlc.data import synthetic_suite
 from nrmlc.runner import RunCache
-from nrmlc.tracker.run import TrackResult
+from nrmlc.tracker.loop import TrackResult
 
 N = 40
 

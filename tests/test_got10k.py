@@ -30,7 +30,7 @@ from nrmlc.data import synthetic_suite  # noqa: E402
 from nrmlc.io import write_boxes  # noqa: E402
 from nrmlc.metrics import overlaps  # noqa: E402
 from nrmlc.toolkits import NRMLCGot10k  # noqa: E402
-from nrmlc.tracker.nrmlc_tracker import NRMLCTracker  # noqa: E402
+from nrmlc.tracker.algorithm import NRMLCTracker  # noqa: E402
 
 FAST = dict(n_particles=50, n_positive=10, n_negative=20, max_positive=20)
 FAST_CLI = [item for name, value in FAST.items() for item in ("--param", f"{name}={value}")]

@@ -28,9 +28,9 @@ from nrmlc.data import list_sequences, open_sequence, read_box_file, synthetic_s
 from nrmlc.data import fingerprint
 from nrmlc.errors import DataError, OutputError, ParameterError
 from nrmlc.runner import RunCache, RunSpec
-from nrmlc.tracker.nrmlc_tracker import NRMLCTracker
+from nrmlc.tracker.algorithm import NRMLCTracker
 from nrmlc.tracker.params import TrackerParams
-from nrmlc.tracker.run import track_sequence
+from nrmlc.tracker.loop import track_sequence
 
 from test_cli import FAST, run_main, subprocess_env
 

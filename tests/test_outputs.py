@@ -94,7 +94,7 @@ REFUSED = {
 
 @pytest.mark.parametrize("name", list(REFUSED))
 def test_bad_outputs_are_refused_before_tracking(name, seq, tmp_path, capsys, monkeypatch):
-    import nrmlc.tracker.run
+    import nrmlc.tracker.loop
 
     option, raw, setup, expected = REFUSED[name]
     given = raw.replace("{seq}", str(seq))
@@ -107,7 +107,7 @@ def test_bad_outputs_are_refused_before_tracking(name, seq, tmp_path, capsys, mo
     def not_called(*args, **kwargs):
         raise AssertionError("the tracker ran before the outputs were checked")
 
-    monkeypatch.setattr(nrmlc.tracker.run, "track_sequence", not_called)
+    monkeypatch.setattr(nrmlc.tracker.loop, "track_sequence", not_called)
     out = tmp_path / "result.txt"
     out.write_text("earlier result\n")
     argv = ["track", seq, "--out", out, *FAST]
@@ -376,16 +376,16 @@ def test_an_interrupt_a_finaliser_swallowed_still_ends_the_run(seq, tmp_path, mo
     """A KeyboardInterrupt raised inside a ``__del__`` is printed and dropped by Python, and the
     run would go on to replace the outputs; the signal's flag stops it before the commit."""
     import nrmlc.errors
-    import nrmlc.tracker.run
+    import nrmlc.tracker.loop
 
-    real = nrmlc.tracker.run.track_sequence
+    real = nrmlc.tracker.loop.track_sequence
 
     def swallowed(*args, **kwargs):
         result = real(*args, **kwargs)
         nrmlc.errors.interrupt_requested.set()  # as _terminate does, its exception lost
         return result
 
-    monkeypatch.setattr(nrmlc.tracker.run, "track_sequence", swallowed)
+    monkeypatch.setattr(nrmlc.tracker.loop, "track_sequence", swallowed)
     out = tmp_path / "r.txt"
     out.write_text("earlier result\n")
     assert main(["track", str(seq), "--out", str(out), *FAST]) == 130

@@ -22,9 +22,9 @@ from nrmlc import io
 from nrmlc.data import open_sequence, synthetic_suite, write_otb_sequence
 from nrmlc.errors import ParameterError
 from nrmlc.metrics import evaluate
-from nrmlc.tracker.nrmlc_tracker import FrameResult, NRMLCTracker, as_gray_frame, clip_initial_box
+from nrmlc.tracker.algorithm import FrameResult, NRMLCTracker, as_gray_frame, clip_initial_box
 from nrmlc.tracker.params import TrackerParams
-from nrmlc.tracker.run import track_sequence
+from nrmlc.tracker.loop import track_sequence
 
 REPO_ROOT = Path(__file__).resolve().parent.parent
 

@@ -25,7 +25,7 @@ import nrmlc.runner as runner
 from nrmlc.data import SyntheticSequence, SyntheticSpec
 from nrmlc.runner import RunCache, RunSpec, code_version, sequence_identity
 from nrmlc.tracker.params import TrackerParams
-from nrmlc.tracker.run import TrackResult
+from nrmlc.tracker.loop import TrackResult
 
 REPO_ROOT = Path(__file__).resolve().parent.parent
 
@@ -105,7 +105,7 @@ def test_code_version_follows_the_sources_that_decide_the_boxes(monkeypatch):
     version = code_version()
     assert version == code_version() and len(version) == 16
     original = Path.read_bytes
-    for name in ("coding.py", "nrmlc_tracker.py", "sequence.py", "synthetic.py", "geometry.py"):
+    for name in ("coding.py", "algorithm.py", "sequence.py", "synthetic.py", "geometry.py"):
         def edited(self, name=name):
             return original(self) + (b"\n# edited" if self.name == name else b"")
 

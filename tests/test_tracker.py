@@ -293,7 +293,7 @@ def test_scale_prior_is_a_gaussian_in_the_log_size_about_the_initial_box(sequenc
 
 
 def test_scale_prior_keeps_a_shrinking_box_nearer_the_initial_size(sequence):
-    from nrmlc.tracker.run import track_sequence as run
+    from nrmlc.tracker.loop import track_sequence as run
 
     spread = {}
     for sigma in (0.0, 0.05):

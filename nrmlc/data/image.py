@@ -27,7 +27,7 @@ def to_gray_float32(image: np.ndarray) -> np.ndarray:
     ----------
     image : (H, W), (H, W, 1), (H, W, 2), (H, W, 3) or (H, W, 4) numeric array
         The caller checks the dtype and shape (see ``Sequence.raw_frame`` and
-        ``nrmlc.tracker.nrmlc_tracker.as_gray_frame``).
+        ``nrmlc.tracker.algorithm.as_gray_frame``).
 
     Returns
     -------

@@ -4,8 +4,8 @@ Imports are lazy so that ``python -m nrmlc evaluate`` does not load numba.
 """
 __all__ = ["NRMLCTracker", "TrackerParams", "FrameResult", "TrackResult", "track_sequence"]
 
-_WHERE = {"NRMLCTracker": "nrmlc_tracker", "FrameResult": "nrmlc_tracker", "TrackerParams": "params",
-          "TrackResult": "run", "track_sequence": "run"}
+_WHERE = {"NRMLCTracker": "algorithm", "FrameResult": "algorithm", "TrackerParams": "params",
+          "TrackResult": "loop", "track_sequence": "loop"}
 
 
 def __getattr__(name):

@@ -8,7 +8,7 @@ import numpy as np
 
 from nrmlc.errors import ParameterError
 from nrmlc.geometry import usable_boxes
-from nrmlc.tracker.nrmlc_tracker import FrameResult, NRMLCTracker
+from nrmlc.tracker.algorithm import FrameResult, NRMLCTracker
 from nrmlc.tracker.params import TrackerParams
 
 #: FrameResult fields stored per frame in a TrackResult (frame 0 gets NaN / 0).
