@@ -48,7 +48,7 @@ Per run (frame 0, the given box, excluded throughout):
    appearance). Added after the seven above named nothing for David3 and Caviar1, with their
    thresholds set before any run was read;
 10. **re-detection**: share of frames on which the re-detection search ran (its trigger,
-   ``nrmlc.tracker.algorithm.REDETECT_TRIGGER``, fired), and the same share among the
+   ``nrmlc.tracker.redetect.REDETECT_TRIGGER``, fired), and the same share among the
    annotated frames with IoU < :data:`LOST_IOU`: whether the search runs where the box is
    off the target (0 for a configuration without re-detection);
 11. **the box's fit**: the mean IoU on the annotated frames on the target (IoU >= :data:`LOST_IOU`)
@@ -100,7 +100,7 @@ from experiments.tables import fmt, mean_std, save_figure, write_csv
 from nrmlc import io
 from nrmlc.geometry import usable_boxes
 from nrmlc.metrics import overlaps as overlaps_of
-from nrmlc.tracker.algorithm import REDETECT_TRIGGER
+from nrmlc.tracker.redetect import REDETECT_TRIGGER
 
 STEM = "failure_mechanisms"
 TITLE = "Failure mechanisms: no positive template among the nearest, occlusion flag, scale drift, loss of lock"

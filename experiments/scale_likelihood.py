@@ -80,7 +80,8 @@ class ScaleProfile:
 
     def execute(self) -> dict:
         from nrmlc.geometry import box_to_state, usable_boxes
-        from nrmlc.tracker.algorithm import NRMLCTracker, as_gray_frame
+        from nrmlc.data.image import as_gray_frame
+        from nrmlc.tracker.algorithm import NRMLCTracker
 
         sequence, params = self.sequence, self.params
         groundtruth = sequence.groundtruth

@@ -25,6 +25,8 @@ is the identity on canonical states, ``matrix -> state -> matrix`` everywhere.
 """
 from __future__ import annotations
 
+import warnings
+
 import numpy as np
 
 from nrmlc.config import PATCH_SIZE
@@ -225,3 +227,52 @@ def clamp_states(states: np.ndarray, frame_shape: tuple[int, int], min_size: flo
     side = patch_size * states[:, 2]
     np.clip(states[:, 4], min_size / side, largest / side, out=states[:, 4])
     return states
+
+
+#: Smallest initial box side accepted, in pixels.
+MIN_BOX_SIZE = 4.0
+
+
+def as_box(box, name: str = "box") -> np.ndarray:
+    """A box given as any sequence of 4 numbers, as a (4,) float64 array.
+
+    Raises ParameterError for strings, mappings and anything not 4 finite numbers.
+    """
+    if isinstance(box, (str, bytes, dict)) or not hasattr(box, "__len__"):
+        raise ParameterError(f"{name} must be 4 numbers (x, y, w, h), got {type(box).__name__} {box!r}")
+    try:
+        array = np.asarray(box, dtype=np.float64).reshape(-1)
+    except (TypeError, ValueError):
+        raise ParameterError(f"{name} must be 4 numbers (x, y, w, h), got {box!r}") from None
+    if array.shape != (4,) or not np.all(np.isfinite(array)):
+        raise ParameterError(f"{name} must be 4 finite numbers (x, y, w, h), got {array.tolist()}")
+    return array
+
+
+def clip_initial_box(box, frame_shape) -> np.ndarray:
+    """Validate the initial box against the frame: clip it (with a warning) when it is
+    partly outside; refuse it when it is wholly outside or smaller than 4 px.
+
+    Returns
+    -------
+    box : (4,) float64, 1-based OTB ``(x, y, w, h)``
+    """
+    box = as_box(box, "initial box")
+    height, width = frame_shape
+    x0, y0 = box[0], box[1]
+    x1, y1 = x0 + box[2], y0 + box[3]
+    if box[2] <= 0 or box[3] <= 0:
+        raise ParameterError(f"initial box {box.tolist()} has a non-positive size")
+    # 1-based boxes: the frame spans [1, width + 1) x [1, height + 1).
+    cx0, cy0, cx1, cy1 = max(x0, 1.0), max(y0, 1.0), min(x1, width + 1.0), min(y1, height + 1.0)
+    if cx1 <= cx0 or cy1 <= cy0:
+        raise ParameterError(f"initial box {box.tolist()} lies wholly outside the {width}x{height} frame")
+    if (cx0, cy0, cx1, cy1) == (x0, y0, x1, y1):
+        clipped = box.copy()  # inside: keep the values as given ((x + w) - x need not equal w in floating point)
+    else:
+        clipped = np.array([cx0, cy0, cx1 - cx0, cy1 - cy0])
+        warnings.warn(f"initial box {box.tolist()} is partly outside the {width}x{height} frame; "
+                      f"clipped to {clipped.round(2).tolist()}")
+    if clipped[2] < MIN_BOX_SIZE or clipped[3] < MIN_BOX_SIZE:
+        raise ParameterError(f"initial box {clipped.round(2).tolist()} is smaller than {MIN_BOX_SIZE:g} px")
+    return clipped

@@ -13,7 +13,7 @@ import pytest
 from nrmlc import NRMLCTracker, TrackerParams
 from nrmlc.metrics import overlaps
 from nrmlc.testing.scenes import jump_scene
-from nrmlc.tracker.algorithm import REDETECT_TRIGGER
+from nrmlc.tracker.redetect import REDETECT_TRIGGER
 
 REPO_ROOT = Path(__file__).resolve().parent.parent
 JUMP_FRAME = 4

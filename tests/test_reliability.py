@@ -22,7 +22,9 @@ from nrmlc import io
 from nrmlc.data import open_sequence, synthetic_suite, write_otb_sequence
 from nrmlc.errors import ParameterError
 from nrmlc.metrics import evaluate
-from nrmlc.tracker.algorithm import FrameResult, NRMLCTracker, as_gray_frame, clip_initial_box
+from nrmlc.data.image import as_gray_frame
+from nrmlc.geometry import clip_initial_box
+from nrmlc.tracker.algorithm import FrameResult, NRMLCTracker
 from nrmlc.tracker.params import TrackerParams
 from nrmlc.tracker.loop import track_sequence
 

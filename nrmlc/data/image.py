@@ -10,6 +10,8 @@ import threading
 import cv2
 import numpy as np
 
+from nrmlc.errors import ParameterError
+
 _INTEGER_SCALE = {np.dtype(np.uint8): 1.0 / 255.0, np.dtype(np.uint16): 1.0 / 65535.0}
 
 
@@ -108,3 +110,32 @@ def native_summary(messages: list[str]) -> str:
     """The C library's lines as one short clause for our messages."""
     text = "; ".join(dict.fromkeys(messages))  # in order, without repeats
     return text if len(text) <= 200 else text[:197] + "..."
+
+
+def as_gray_frame(image: np.ndarray) -> np.ndarray:
+    """Any numpy image (gray, gray+alpha, BGR, BGRA; uint8, uint16 or float) as a C-contiguous
+    float32 gray frame. Intensity scale does not matter: patches are normalised.
+
+    Returns
+    -------
+    frame : (height, width) float32
+    """
+    if _is_pil_image(image):
+        # PIL images are RGB (got10k's Tracker.track passes them): let PIL make the gray.
+        image = np.asarray(image.convert("L") if image.mode not in ("L", "I;16", "I", "F") else image)
+    if not isinstance(image, np.ndarray):
+        raise ParameterError(f"frame must be a numpy array or a PIL image, got {type(image).__name__}")
+    channels = image.shape[2] if image.ndim == 3 else 1
+    if image.ndim not in (2, 3) or channels not in (1, 2, 3, 4) or image.shape[0] < 2 or image.shape[1] < 2:
+        raise ParameterError(f"frame must be a gray or BGR(A) image of at least 2x2 pixels, got shape {image.shape}")
+    if not np.issubdtype(image.dtype, np.number) or np.issubdtype(image.dtype, np.complexfloating):
+        raise ParameterError(f"frame has unsupported dtype {image.dtype}")
+    frame = to_gray_float32(image)
+    if not np.all(np.isfinite(frame)):
+        raise ParameterError("frame contains NaN or infinite values")
+    return frame
+
+
+def _is_pil_image(image) -> bool:
+    """True for a PIL.Image without importing PIL (it is not a dependency)."""
+    return type(image).__module__.startswith("PIL.") and hasattr(image, "convert") and hasattr(image, "mode")

@@ -29,106 +29,29 @@ from __future__ import annotations
 
 import contextlib
 import threading
-import warnings
 from dataclasses import dataclass
 
 import cv2
 import numpy as np
 
-from nrmlc.data.image import to_gray_float32
+from nrmlc.data.image import as_gray_frame
 from nrmlc.errors import ParameterError
-from nrmlc.geometry import box_to_state, clamp_states, state_to_affine, state_to_box, usable_boxes
+from nrmlc.geometry import (MIN_BOX_SIZE, as_box, box_to_state, clamp_states, clip_initial_box, state_to_affine,
+                            state_to_box, usable_boxes)
 from nrmlc.kernels.coding import code_candidates
 from nrmlc.kernels.distance import candidate_template_dots, template_gram
 from nrmlc.kernels.warp import centre_patches, warp_patches
 from nrmlc.tracker.generative import LocalHistogramModel
 from nrmlc.tracker.params import TrackerParams
+from nrmlc.tracker.redetect import REDETECT_TRIGGER, needs_search, search
 from nrmlc.tracker.templates import (SCM_PUSH_INIT, SCM_PUSH_UPDATE, negative_states, positive_states,
                                      scm_negative_states, scm_positive_states)
 
-MIN_BOX_SIZE = 4.0
 #: ``prefilter`` skips blurs narrower than this (image px): such a Gaussian gives the
 #: neighbouring pixels a weight of about exp(-200), i.e. it changes nothing.
 MIN_BLUR_SIGMA = 0.05
 #: OpenCV reads a sigma of 0 as "derive it from the kernel size": the other axis's floor.
 BLUR_SIGMA_FLOOR = 1e-3
-#: eps_pos* at or above which a frame runs the re-detection search (``redetect_count``): 1 up
-#: to rounding, i.e. the best candidate's code puts no weight on a positive template.
-REDETECT_TRIGGER = 0.99
-
-
-def as_gray_frame(image: np.ndarray) -> np.ndarray:
-    """Any numpy image (gray, gray+alpha, BGR, BGRA; uint8, uint16 or float) as a C-contiguous
-    float32 gray frame. Intensity scale does not matter: patches are normalised.
-
-    Returns
-    -------
-    frame : (height, width) float32
-    """
-    if _is_pil_image(image):
-        # PIL images are RGB (got10k's Tracker.track passes them): let PIL make the gray.
-        image = np.asarray(image.convert("L") if image.mode not in ("L", "I;16", "I", "F") else image)
-    if not isinstance(image, np.ndarray):
-        raise ParameterError(f"frame must be a numpy array or a PIL image, got {type(image).__name__}")
-    channels = image.shape[2] if image.ndim == 3 else 1
-    if image.ndim not in (2, 3) or channels not in (1, 2, 3, 4) or image.shape[0] < 2 or image.shape[1] < 2:
-        raise ParameterError(f"frame must be a gray or BGR(A) image of at least 2x2 pixels, got shape {image.shape}")
-    if not np.issubdtype(image.dtype, np.number) or np.issubdtype(image.dtype, np.complexfloating):
-        raise ParameterError(f"frame has unsupported dtype {image.dtype}")
-    frame = to_gray_float32(image)
-    if not np.all(np.isfinite(frame)):
-        raise ParameterError("frame contains NaN or infinite values")
-    return frame
-
-
-def _is_pil_image(image) -> bool:
-    """True for a PIL.Image without importing PIL (it is not a dependency)."""
-    return type(image).__module__.startswith("PIL.") and hasattr(image, "convert") and hasattr(image, "mode")
-
-
-def as_box(box, name: str = "box") -> np.ndarray:
-    """A box given as any sequence of 4 numbers, as a (4,) float64 array.
-
-    Raises ParameterError for strings, mappings and anything not 4 finite numbers.
-    """
-    if isinstance(box, (str, bytes, dict)) or not hasattr(box, "__len__"):
-        raise ParameterError(f"{name} must be 4 numbers (x, y, w, h), got {type(box).__name__} {box!r}")
-    try:
-        array = np.asarray(box, dtype=np.float64).reshape(-1)
-    except (TypeError, ValueError):
-        raise ParameterError(f"{name} must be 4 numbers (x, y, w, h), got {box!r}") from None
-    if array.shape != (4,) or not np.all(np.isfinite(array)):
-        raise ParameterError(f"{name} must be 4 finite numbers (x, y, w, h), got {array.tolist()}")
-    return array
-
-
-def clip_initial_box(box, frame_shape) -> np.ndarray:
-    """Validate the initial box against the frame: clip it (with a warning) when it is
-    partly outside; refuse it when it is wholly outside or smaller than 4 px.
-
-    Returns
-    -------
-    box : (4,) float64, 1-based OTB ``(x, y, w, h)``
-    """
-    box = as_box(box, "initial box")
-    height, width = frame_shape
-    x0, y0 = box[0], box[1]
-    x1, y1 = x0 + box[2], y0 + box[3]
-    if box[2] <= 0 or box[3] <= 0:
-        raise ParameterError(f"initial box {box.tolist()} has a non-positive size")
-    # 1-based boxes: the frame spans [1, width + 1) x [1, height + 1).
-    cx0, cy0, cx1, cy1 = max(x0, 1.0), max(y0, 1.0), min(x1, width + 1.0), min(y1, height + 1.0)
-    if cx1 <= cx0 or cy1 <= cy0:
-        raise ParameterError(f"initial box {box.tolist()} lies wholly outside the {width}x{height} frame")
-    if (cx0, cy0, cx1, cy1) == (x0, y0, x1, y1):
-        clipped = box.copy()  # inside: keep the values as given ((x + w) - x need not equal w in floating point)
-    else:
-        clipped = np.array([cx0, cy0, cx1 - cx0, cy1 - cy0])
-        warnings.warn(f"initial box {box.tolist()} is partly outside the {width}x{height} frame; "
-                      f"clipped to {clipped.round(2).tolist()}")
-    if clipped[2] < MIN_BOX_SIZE or clipped[3] < MIN_BOX_SIZE:
-        raise ParameterError(f"initial box {clipped.round(2).tolist()} is smaller than {MIN_BOX_SIZE:g} px")
-    return clipped
 
 
 @dataclass
@@ -515,9 +438,9 @@ class NRMLCTracker:
         self._add_scale_prior(coded, states)
         n_local = len(states)
         best = int(np.argmax(coded["log_confidence"]))
-        searched = p.redetect_count > 0 and coded["error_positive"][best] >= REDETECT_TRIGGER
+        searched = needs_search(p, coded["error_positive"][best])
         if searched:
-            states, candidates, coded = self._redetect(frame, states, candidates, coded)
+            states, candidates, coded = search(self, frame, states, candidates, coded)
             best = int(np.argmax(coded["log_confidence"]))
         log_confidence = coded["log_confidence"]
         self.particles = states
@@ -548,21 +471,6 @@ class NRMLCTracker:
         self.last = result
         self.last_candidates = dict(coded, states=states, patches=candidates, best=best)
         return result
-
-    def _redetect(self, frame: np.ndarray, states: np.ndarray, candidates: np.ndarray, coded: dict) -> tuple:
-        """This frame's particles, patches and codes with the re-detection search's appended
-        (``redetect_count`` candidates around the previous estimate, ``redetect_factor`` times
-        the translation noise). A re-detection candidate whose eps_pos is not below
-        ``redetect_accept`` gets log h = -inf: it can be neither the estimate nor resampled."""
-        p = self.params
-        extra = self._diffuse(np.tile(self.state, (p.redetect_count, 1)), p.redetect_count, p.redetect_factor)
-        extra_candidates = self.patches(frame, extra)
-        extra_coded = self.encode(extra_candidates)
-        self._add_scale_prior(extra_coded, extra)
-        extra_coded["log_confidence"] = np.where(extra_coded["error_positive"] < p.redetect_accept,
-                                                 extra_coded["log_confidence"], -np.inf)
-        merged = {name: np.concatenate([coded[name], extra_coded[name]]) for name in coded}
-        return np.vstack([states, extra]), np.vstack([candidates, extra_candidates]), merged
 
     def _add_scale_prior(self, coded: dict, states: np.ndarray) -> None:
         """Add the scale prior (``scale_prior``) to ``coded['log_confidence']`` in place:

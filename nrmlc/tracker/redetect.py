@@ -1,0 +1,51 @@
+"""Re-detection (*ours*; ``redetect_count`` = 0 is the paper): a wider search on a frame where
+the target looks like nothing the positives hold.
+
+On a frame whose best candidate's code puts no weight on a positive template (eps_pos* = 1),
+``redetect_count`` more candidates are drawn around the previous estimate with
+``redetect_factor`` times the translation noise and coded on the same templates; one counts only
+if its eps_pos < ``redetect_accept`` (a wide search would otherwise jump to whatever the
+negatives rank well, such as another player). They join the particles the next frame resamples.
+Chosen on the development set: docs/findings/round-09-redetection-and-colour.md.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+#: eps_pos* at or above which a frame runs the search: 1 up to rounding, i.e. the best
+#: candidate's code puts no weight on a positive template.
+REDETECT_TRIGGER = 0.99
+
+
+def needs_search(params, best_error_positive: float) -> bool:
+    """Whether this frame runs the search (it is on, and the best candidate uses no positive)."""
+    return params.redetect_count > 0 and best_error_positive >= REDETECT_TRIGGER
+
+
+def search(tracker, frame: np.ndarray, states: np.ndarray, candidates: np.ndarray, coded: dict) -> tuple:
+    """This frame's particles, patches and codes with the search's candidates appended.
+
+    Parameters
+    ----------
+    tracker : nrmlc.tracker.algorithm.NRMLCTracker
+        Its estimate, motion model, patches and coder are used.
+    frame : (height, width) float32
+    states : (n, 6) float64, candidates : (n, patch_size**2) float32
+    coded : dict of (n, ...) arrays
+        What :meth:`NRMLCTracker.encode` gave for ``candidates``.
+
+    Returns
+    -------
+    states (n + r, 6), candidates (n + r, patch_size**2), coded (dict of (n + r, ...) arrays),
+    with r = ``redetect_count``. A search candidate whose eps_pos is not below
+    ``redetect_accept`` gets log h = -inf: it can be neither the estimate nor resampled.
+    """
+    p = tracker.params
+    extra = tracker._diffuse(np.tile(tracker.state, (p.redetect_count, 1)), p.redetect_count, p.redetect_factor)
+    extra_candidates = tracker.patches(frame, extra)
+    extra_coded = tracker.encode(extra_candidates)
+    tracker._add_scale_prior(extra_coded, extra)
+    extra_coded["log_confidence"] = np.where(extra_coded["error_positive"] < p.redetect_accept,
+                                             extra_coded["log_confidence"], -np.inf)
+    merged = {name: np.concatenate([coded[name], extra_coded[name]]) for name in coded}
+    return np.vstack([states, extra]), np.vstack([candidates, extra_candidates]), merged
