@@ -8,6 +8,9 @@
 #   make test                    the linter (ruff) and the test suite (what CI runs)
 #   make theorem                 numeric checks of Theorem 1 (seconds)
 #   make bench [DATA=path]       kernel and tracker timings -> out/figures/bench.md (OUT=figures: committed)
+#   make more-sequences MIRRORS=dir [DEST=../devdata]
+#                                lay out the 24 more development targets, the OTB benchmark's results and
+#                                attributes from local copies of public repositories (../shared/tools/lay_sequences.py)
 
 PYTHON_BOOT ?= python3
 VENV        ?= .venv
@@ -29,7 +32,11 @@ DASK        ?=
 
 export PYTHONHASHSEED := 0
 
-.PHONY: all install test figures theorem bench clean-runs clean
+MIRRORS     ?=
+DEST        ?= ../devdata
+LAY_SEQUENCES := ../shared/tools/lay_sequences.py
+
+.PHONY: all install test figures theorem bench more-sequences clean-runs clean
 
 all: figures
 
@@ -64,6 +71,11 @@ theorem: $(STAMP)
 
 bench: $(STAMP)
 	$(PY) -m experiments.bench $(if $(DATA),--data "$(DATA)") $(if $(OUT),--out "$(OUT)")
+
+more-sequences:
+	@test -f $(LAY_SEQUENCES) || { echo "error: $(LAY_SEQUENCES) not found (it is part of this workplace's shared/ folder)"; exit 2; }
+	@test -n "$(MIRRORS)" || { echo "error: give MIRRORS=dir, the folder of the local copies that 'python3 $(LAY_SEQUENCES) --list x y' names"; exit 2; }
+	python3 $(LAY_SEQUENCES) "$(MIRRORS)" "$(DEST)"
 
 clean-runs:
 	rm -rf .cache/runs

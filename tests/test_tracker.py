@@ -59,7 +59,7 @@ def test_every_departure_of_the_default_from_the_paper_is_documented():
     deviations = (Path(__file__).resolve().parents[1] / "docs" / "DEVIATIONS.md").read_text()
     default, paper = TrackerParams().as_dict(), TrackerParams.paper().as_dict()
     differing = sorted(name for name in default if default[name] != paper[name])
-    assert {"update_interval", "update_error_threshold", "alpha"} <= set(differing)
+    assert {"template_sampling", "redetect_count", "alpha"} <= set(differing)
     assert [name for name in differing if f"`{name}`" not in deviations] == []
 
 
