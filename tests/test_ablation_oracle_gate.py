@@ -11,7 +11,8 @@ from nrmlc.tracker.algorithm import NRMLCTracker
 from nrmlc.tracker.params import TrackerParams
 
 N = 30
-PARAMS = TrackerParams(n_particles=100)
+# Updates every frame, so that the gate decides on every frame of these short sequences.
+PARAMS = TrackerParams(n_particles=100, update_interval=1)
 
 
 @pytest.fixture(scope="module")
