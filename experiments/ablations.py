@@ -25,7 +25,7 @@ Families, each against the default tracker (the first row of each):
   wide translation noise, if switched on): the default vs the paper's value;
 - every numeric extension left off by default (:data:`TRIAL_VALUES`: a share of wide
   translation noise, the estimate as a mean of the top particles, a velocity in the motion
-  model, anti-aliased patches, the local-patch generative term) and SCM's negative push-out
+  model, anti-aliased patches, the local-patch generative term, the scale prior) and SCM's negative push-out
   zone: the default vs a trial value;
 - the generative term's coding, when it is on with a coarser grid than SCM's: the default vs
   SCM's 2-px grid on 150 candidates;
@@ -77,7 +77,7 @@ METRICS = (("overlap", "mean overlap", 3), ("cle", "CLE (px)", 1), ("negative_sh
 #: when the default has the paper's (off) value. Their screening on the development sequences,
 #: which chose the defaults, is in docs/FINDINGS.md.
 TRIAL_VALUES = {"wide_share": 0.2, "estimate_count": 20, "velocity_damping": 0.5, "antialias": 0.5,
-                "negative_push": 0.5, "generative_weight": 10.0}
+                "negative_push": 0.5, "generative_weight": 10.0, "scale_prior": 0.33}
 
 #: Candidates coded by the generative term in round 13 (SCM's grid); its coding row compares them.
 ROUND13_CANDIDATES = 150
