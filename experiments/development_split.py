@@ -31,6 +31,9 @@ from pathlib import Path
 
 import numpy as np
 
+from nrmlc.attributes import ATTRIBUTES as OTB_ATTRIBUTES
+from nrmlc.attributes import read_attributes as read_attribute_sets
+
 #: The first 12 development targets (those of ``../shared/data/sequences``).
 FIRST_TARGETS = ("Basketball", "Car1", "Car11", "Couple", "Crossing", "Dog", "Football1", "Girl",
                  "Jogging-1", "Jogging-2", "MotorRolling", "Toy")
@@ -38,28 +41,15 @@ FIRST_TARGETS = ("Basketball", "Car1", "Car11", "Couple", "Crossing", "Dog", "Fo
 #: Targets that share a video.
 SAME_VIDEO = (("Jogging-1", "Jogging-2"), ("Skating2-1", "Skating2-2"))
 
-#: The OTB toolkit's attribute names, in the order of its flag files (``attName`` of the
-#: benchmark's ``perfPlot_TB100.m``).
-ATTRIBUTES = ("IV", "OPR", "SV", "OCC", "DEF", "MB", "FM", "IPR", "OV", "BC", "LR")
-
-
-def attribute_file(folder: Path, target: str) -> Path | None:
-    """The benchmark's flag file of ``target`` (its own spellings: ``jogging-1``, ``Skating2.1``)."""
-    files = {p.stem.lower(): p for p in folder.glob("*.txt")}
-    for stem in (target, target.replace("-", "."), target.split("-")[0]):
-        if stem.lower() in files:
-            return files[stem.lower()]
-    return None
+#: The OTB toolkit's attribute codes, in the order of its flag files.
+ATTRIBUTES = tuple(code for code, _ in OTB_ATTRIBUTES)
 
 
 def read_attributes(folder: Path, targets) -> np.ndarray:
-    """(n_targets, 11) 0/1 flags; a target without a file gets zeros."""
-    flags = np.zeros((len(targets), len(ATTRIBUTES)))
-    for i, target in enumerate(targets):
-        path = attribute_file(folder, target)
-        if path is not None:
-            flags[i] = [float(v) for v in path.read_text().replace(",", " ").split()]
-    return flags
+    """(n_targets, 11) 0/1 flags (:func:`nrmlc.attributes.read_attributes`); a target without a
+    file (Car11, not an OTB-100 sequence) gets zeros."""
+    found, _ = read_attribute_sets(folder, list(targets))
+    return np.array([[code in found.get(t, ()) for code in ATTRIBUTES] for t in targets], dtype=np.float64)
 
 
 def split_cost(in_a: np.ndarray, difficulty: np.ndarray, flags: np.ndarray) -> float:

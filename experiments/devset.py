@@ -161,6 +161,56 @@ def collapsed(scales: dict, names) -> list[str]:
     return [n for n in names if n in scales and np.nanmedian(scales[n]) < COLLAPSED_BELOW]
 
 
+#: A run "lost early" when lock is lost (:func:`experiments.failure_mechanisms.lock_lost_at`)
+#: within this share of its frames.
+EARLY_SHARE = 0.05
+
+
+def loss_measures(cache: RunCache, params: TrackerParams, sequences, seeds, jobs=None) -> dict:
+    """{target: {"scale": [per seed], "lost_at": [share of frames before the loss of lock, or None]}}
+    from the cached runs of ``params`` (:func:`tracked_scale`, the failure measures' loss of lock)."""
+    from experiments.failure_mechanisms import lock_lost_at
+
+    real = [s for s in sequences if not isinstance(s, SyntheticSequence)]
+    specs = specs_for(real, params, seeds)
+    table: dict = {}
+    for spec, result in zip(specs, cache.run(specs, jobs=jobs, progress=False)):
+        evaluation = score(result.boxes, spec.sequence)
+        lost = lock_lost_at(evaluation.overlaps, evaluation.frames)
+        entry = table.setdefault(spec.sequence.name, {"scale": [], "lost_at": []})
+        entry["scale"].append(tracked_scale(result.boxes, spec.sequence))
+        entry["lost_at"].append(None if lost is None else lost / len(spec.sequence))
+    return table
+
+
+def early_losses(measures: dict, names, share: float = EARLY_SHARE) -> list[str]:
+    """Targets lost within ``share`` of their frames in most seeds."""
+    return [n for n in names if n in measures and
+            2 * sum(at is not None and at <= share for at in measures[n]["lost_at"]) > len(measures[n]["lost_at"])]
+
+
+def attribute_means(columns: dict, names, attributes: dict) -> dict:
+    """{attribute code: {column: mean over the targets of ``names`` that have it}, plus "n"}."""
+    from nrmlc.attributes import ATTRIBUTES
+
+    table = {}
+    for code, _ in ATTRIBUTES:
+        having = [n for n in names if code in attributes.get(n, ())]
+        if having:
+            table[code] = {"n": len(having), **{c: float(np.mean([v[n] for n in having if n in v]))
+                                                 for c, v in columns.items() if any(n in v for n in having)}}
+    return table
+
+
+def format_attribute_means(table: dict, columns) -> str:
+    """Markdown: one row per attribute, a column per tracker."""
+    lines = ["| attribute (targets) | " + " | ".join(columns) + " |", "|---|" + "---|" * len(columns)]
+    for code, row in table.items():
+        lines.append(f"| {code} ({row['n']}) | " + " | ".join(f"{row[c]:.3f}" if c in row else "-" for c in columns)
+                     + " |")
+    return "\n".join(lines)
+
+
 def peer_overlaps(cache: RunCache, sequences, max_frames, jobs) -> dict:
     """{tracker: {sequence name: mean overlap}} for the live OpenCV trackers (cached)."""
     from experiments.peers import LiveSpec, live_trackers
@@ -294,10 +344,10 @@ def lineage_overlaps(folder, sequences, trackers=LINEAGE_TRACKERS) -> tuple[dict
     return table, notes
 
 
-def default_otb_results(roots) -> Path | None:
-    """The OTB benchmark's result folder laid out beside a data root (``<root>/../otb_results``)."""
+def default_beside(roots, name: str) -> Path | None:
+    """A folder ``name`` laid out beside a data root (``<root>/../otb_results``, ``../otb_attributes``)."""
     for root in roots:
-        candidate = Path(root).parent / "otb_results"
+        candidate = Path(root).parent / name
         if candidate.is_dir():
             return candidate
     return None
@@ -328,6 +378,9 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--otb-results", default=None, metavar="DIR",
                         help="the OTB benchmark's result files, for ASLA and IVT (default: otb_results/ "
                              "beside a data root)")
+    parser.add_argument("--attributes", default=None, metavar="DIR",
+                        help="the OTB attribute files: also the mean overlap per attribute (default: "
+                             "otb_attributes/ beside a data root)")
     parser.add_argument("--jobs", type=int, default=None, help="worker processes (default: all cores)")
     parser.add_argument("--cache", default=str(DEFAULT_CACHE), help="run cache folder (default .cache/runs)")
     parser.add_argument("--json", default=None, metavar="PATH", help="also write the numbers as JSON")
@@ -393,17 +446,37 @@ def main(argv=None) -> int:
     if not args.no_peers:
         for tracker, values in peer_overlaps(cache, sequences, args.max_frames, args.jobs).items():
             columns[f"{tracker} (OpenCV)"] = values
-        otb_results = Path(args.otb_results) if args.otb_results else default_otb_results(roots)
+        otb_results = Path(args.otb_results) if args.otb_results else default_beside(roots, "otb_results")
         if otb_results is not None and real and args.max_frames is None:
             lineage, notes = lineage_overlaps(otb_results, real)
             for tracker in LINEAGE_TRACKERS:
                 columns[f"{tracker} (OTB results)"] = lineage.get(tracker, {})
+    attribute_folder = Path(args.attributes) if args.attributes else default_beside(roots, "otb_attributes")
+    attribute_table, losses = None, None
+    if real:
+        measures = loss_measures(cache, config, real, seeds, args.jobs)
+        losses = {label: {"collapsed": collapsed({n: m["scale"] for n, m in measures.items()}, names),
+                          "lost_early": early_losses(measures, names)}
+                  for label, names in groups.items() if label != "synthetic suite"}
+        if attribute_folder is not None:
+            from nrmlc.attributes import read_attributes
+
+            attributes, _ = read_attributes(attribute_folder, [s.name for s in real])
+            attribute_table = attribute_means(columns, [s.name for s in real], attributes)
     changed = {k: v for k, v in config.as_dict().items() if TrackerParams().as_dict()[k] != v}
     print(f"config: preset {args.preset} {changed or ''}; baseline: preset {args.baseline_preset} "
           f"{args.baseline_param or ''}; seeds {','.join(map(str, seeds))}; mean overlap")
     print(format_table(groups, columns))
     for line in format_differences(differences, seeds):
         print(line)
+    for label, found in (losses or {}).items():
+        title = f"half {label}" if label in HALVES else label
+        print(f"config on {title}: tracked scale below {COLLAPSED_BELOW} over the last quarter on "
+              f"{len(found['collapsed'])} ({', '.join(found['collapsed']) or 'none'}); lock lost within the first "
+              f"{EARLY_SHARE:.0%} on {len(found['lost_early'])} ({', '.join(found['lost_early']) or 'none'})")
+    if attribute_table:
+        print(f"mean overlap by OTB attribute ({attribute_folder}):")
+        print(format_attribute_means(attribute_table, list(columns)))
     verdict = adopted(differences) if differences else None
     if verdict is not None and "A" in differences and "B" in differences:
         print(f"adoption rule ({ADOPTION_RULE}): {'ADOPTED' if verdict[0] else 'not adopted'}: {verdict[1]}")
@@ -412,7 +485,8 @@ def main(argv=None) -> int:
     if args.json:
         io.write_json(args.json, {"config": config.as_dict(), "baseline": baseline.as_dict(), "seeds": seeds,
                                   "per_seed": config_runs, "baseline_per_seed": baseline_runs, "columns": columns,
-                                  "groups": groups, "differences": differences,
+                                  "groups": groups, "differences": differences, "losses": losses,
+                                  "attributes": attribute_table,
                                   "adopted": None if verdict is None else {"adopted": verdict[0],
                                                                            "why": verdict[1]}})
     return 0

@@ -214,3 +214,14 @@ def test_a_baseline_is_carried_from_another_code_version_only_when_bit_identical
     other.store(specs[0], arrays)
     with pytest.raises(NrmlcError, match="synth-01 seed 0 gives other boxes"):
         screen.baseline_at_version(cache, specs, "0" * 16, jobs=1)
+
+
+def test_attribute_means_and_early_losses_by_hand():
+    columns = {"config": {"a": 0.2, "b": 0.6, "c": 0.9}, "ASLA": {"a": 0.4, "c": 0.5}}
+    table = devset.attribute_means(columns, ["a", "b", "c"], {"a": {"IV", "SV"}, "b": {"IV"}, "c": {"SV"}})
+    assert table["IV"] == {"n": 2, "config": pytest.approx(0.4), "ASLA": pytest.approx(0.4)}
+    assert table["SV"]["n"] == 2 and table["SV"]["config"] == pytest.approx(0.55) and "OCC" not in table
+    assert "| IV (2) | 0.400 | 0.400 |" in devset.format_attribute_means(table, list(columns))
+    measures = {"a": {"lost_at": [0.01, 0.03, None]}, "b": {"lost_at": [0.01, None, 0.5]}}
+    # Lost within the first 5% in most seeds: a (2 of 3), not b (1 of 3).
+    assert devset.early_losses(measures, ["a", "b"]) == ["a"]
