@@ -32,7 +32,7 @@ from pathlib import Path
 import numpy as np
 
 from experiments.grid import score, specs_for
-from experiments.sequence_sets import DEVELOPMENT_SEQUENCES
+from experiments.sequence_sets import ADOPTION_RULE, DEVELOPMENT_A, DEVELOPMENT_B, DEVELOPMENT_SEQUENCES
 from nrmlc import io
 from nrmlc.config import data_root_from_env
 from nrmlc.data.synthetic import SyntheticSequence
@@ -41,7 +41,20 @@ from nrmlc.benchmark import parse_seeds
 from nrmlc.runner import DEFAULT_CACHE, RunCache
 from nrmlc.tracker.params import TrackerParams, parse_param_assignment
 
-DEFAULT_DATA = Path(__file__).resolve().parents[2] / "shared" / "data" / "sequences"
+REPO_ROOT = Path(__file__).resolve().parents[1]
+
+#: Where the 12 first development targets are (the shared data root).
+DEFAULT_DATA = REPO_ROOT.parent / "shared" / "data" / "sequences"
+
+#: Where ``lay_sequences.py`` is told to lay out the 24 more (``$NRMLC_MORE_DATA`` overrides it);
+#: the OTB benchmark's result files it lays out are in ``otb_results/`` beside it.
+MORE_DATA_ENV = "NRMLC_MORE_DATA"
+DEFAULT_MORE_DATA = REPO_ROOT.parent / "devdata" / "sequences"
+
+#: The lineage's benchmark results shown beside NRMLC (the OTB benchmark's own files).
+LINEAGE_TRACKERS = ("ASLA", "IVT")
+
+HALVES = {"A": DEVELOPMENT_A, "B": DEVELOPMENT_B}
 
 
 def configuration(preset: str, assignments: list[str]) -> TrackerParams:
@@ -50,15 +63,54 @@ def configuration(preset: str, assignments: list[str]) -> TrackerParams:
     return TrackerParams.preset(preset, **changes)
 
 
-def development_sequences(data: Path | None, names, n_synthetic: int, max_frames: int | None) -> list:
+def default_roots() -> list[Path]:
+    """The data roots used when ``--data`` is not given: ``$NRMLC_DATA`` (else the shared
+    sequences) and ``$NRMLC_MORE_DATA`` (else ``../devdata/sequences``), those that exist."""
+    import os
+
+    first = data_root_from_env() or str(DEFAULT_DATA)
+    more = os.environ.get(MORE_DATA_ENV, "").strip() or str(DEFAULT_MORE_DATA)
+    return [Path(p) for p in dict.fromkeys((first, more)) if Path(p).is_dir()]
+
+
+def parse_roots(text: str | None) -> list[Path]:
+    """``--data``: one or more data roots joined by ``os.pathsep`` (default :func:`default_roots`)."""
+    import os
+
+    if text is None:
+        return default_roots()
+    roots = [Path(p) for p in text.split(os.pathsep) if p.strip()]
+    for root in roots:
+        if not root.is_dir():
+            raise NrmlcError(f"--data: {root} is not a folder")
+    return roots
+
+
+def development_sequences(roots, names, n_synthetic: int, max_frames: int | None = None) -> list:
+    """The named development sequences, each from the first root that has it, then the
+    synthetic suite's first ``n_synthetic``.
+
+    Parameters
+    ----------
+    roots : path or list of paths
+        Data roots (a single path is one root).
+    """
     from nrmlc.data import list_sequences, synthetic_suite
 
+    if roots is not None and not isinstance(roots, (list, tuple)):
+        roots = [roots]
     sequences = []
-    if data is not None and names:
-        by_name = {s.name: s for s in list_sequences(data)}
+    if roots and names:
+        by_name: dict = {}
+        for root in roots:
+            for sequence in list_sequences(root):
+                by_name.setdefault(sequence.name, sequence)
         missing = [n for n in names if n not in by_name]
         if missing:
-            raise NrmlcError(f"{data}: development sequence(s) not found: {', '.join(missing)}")
+            where = ", ".join(str(r) for r in roots)
+            raise NrmlcError(f"{where}: development sequence(s) not found: {', '.join(missing)} (the 24 more "
+                             f"are laid out by ../shared/tools/lay_sequences.py; give their folder in "
+                             f"${MORE_DATA_ENV} or --data)")
         sequences += [by_name[n] for n in names]
     if n_synthetic:
         sequences += synthetic_suite(n_frames=300, n_sequences=n_synthetic)
@@ -73,6 +125,90 @@ def mean_overlaps(cache: RunCache, params: TrackerParams, sequences, seeds, max_
     for spec, result in zip(specs, results):
         table.setdefault(spec.sequence.name, []).append(float(score(result.boxes, spec.sequence).mean_overlap))
     return table
+
+
+#: The share of the annotated frames at the end over which :func:`tracked_scale` is taken, and
+#: the scale below which a target counts as collapsed there.
+SCALE_SHARE, COLLAPSED_BELOW = 0.25, 0.7
+
+
+def tracked_scale(boxes, sequence, share: float = SCALE_SHARE) -> float:
+    """The median of sqrt(box area / true area) over the last ``share`` of the annotated
+    frames (frame 0 excluded): below 1 the box is smaller than the target.
+
+    Parameters
+    ----------
+    boxes : (n_frames, 4) float
+        1-based OTB boxes from frame 0.
+    """
+    import math
+
+    evaluation = score(boxes, sequence)
+    frames = np.asarray(evaluation.frames)
+    if frames.size == 0:
+        return math.nan
+    truth = np.asarray(sequence.groundtruth, dtype=np.float64)[frames]
+    predicted = np.asarray(boxes, dtype=np.float64)[frames]
+    with np.errstate(invalid="ignore", divide="ignore"):
+        ratio = np.sqrt(np.abs(predicted[:, 2] * predicted[:, 3]) / (truth[:, 2] * truth[:, 3]))
+    tail = ratio[-max(1, math.ceil(share * len(ratio))):]
+    return float(np.nanmedian(tail)) if np.isfinite(tail).any() else math.nan
+
+
+def collapsed(scales: dict, names) -> list[str]:
+    """The targets among ``names`` whose median over seeds of :func:`tracked_scale` is below
+    :data:`COLLAPSED_BELOW`; ``scales`` maps a target to its per-seed scales."""
+    return [n for n in names if n in scales and np.nanmedian(scales[n]) < COLLAPSED_BELOW]
+
+
+#: A run "lost early" when lock is lost (:func:`experiments.failure_mechanisms.lock_lost_at`)
+#: within this share of its frames.
+EARLY_SHARE = 0.05
+
+
+def loss_measures(cache: RunCache, params: TrackerParams, sequences, seeds, jobs=None) -> dict:
+    """{target: {"scale": [per seed], "lost_at": [share of frames before the loss of lock, or None]}}
+    from the cached runs of ``params`` (:func:`tracked_scale`, the failure measures' loss of lock)."""
+    from experiments.failure_mechanisms import lock_lost_at
+
+    real = [s for s in sequences if not isinstance(s, SyntheticSequence)]
+    specs = specs_for(real, params, seeds)
+    table: dict = {}
+    for spec, result in zip(specs, cache.run(specs, jobs=jobs, progress=False)):
+        evaluation = score(result.boxes, spec.sequence)
+        lost = lock_lost_at(evaluation.overlaps, evaluation.frames)
+        entry = table.setdefault(spec.sequence.name, {"scale": [], "lost_at": []})
+        entry["scale"].append(tracked_scale(result.boxes, spec.sequence))
+        entry["lost_at"].append(None if lost is None else lost / len(spec.sequence))
+    return table
+
+
+def early_losses(measures: dict, names, share: float = EARLY_SHARE) -> list[str]:
+    """Targets lost within ``share`` of their frames in most seeds."""
+    return [n for n in names if n in measures and
+            2 * sum(at is not None and at <= share for at in measures[n]["lost_at"]) > len(measures[n]["lost_at"])]
+
+
+def attribute_means(columns: dict, names, attributes: dict) -> dict:
+    """{attribute code: {column: mean over the targets of ``names`` that have it}, plus "n"}."""
+    from nrmlc.attributes import ATTRIBUTES
+
+    table = {}
+    for code, _ in ATTRIBUTES:
+        having = [n for n in names if code in attributes.get(n, ())]
+        if having:
+            table[code] = {"n": len(having), **{c: float(np.mean([v[n] for n in having if n in v]))
+                                                 for c, v in columns.items() if any(n in v for n in having)}}
+    return table
+
+
+def format_attribute_means(table: dict, columns) -> str:
+    """Markdown: one row per attribute, a column per tracker."""
+    lines = ["| attribute (targets) | " + " | ".join(columns) + " |", "|---|" + "---|" * len(columns)]
+    for code, row in table.items():
+        lines.append(f"| {code} ({row['n']}) | " + " | ".join(f"{row[c]:.3f}" if c in row else "-" for c in columns)
+                     + " |")
+    return "\n".join(lines)
 
 
 def peer_overlaps(cache: RunCache, sequences, max_frames, jobs) -> dict:
@@ -127,23 +263,102 @@ def largest_run_changes(config_runs: dict, baseline_runs: dict, names, seeds, co
     return sorted(changes, key=lambda change: -abs(change[2]))[:count]
 
 
-def format_table(names, columns: dict) -> str:
-    """Markdown table: one row per sequence plus the mean; ``columns`` maps a header to
-    {sequence: value}."""
+def adopted(differences: dict) -> tuple[bool, str]:
+    """The adoption rule (:data:`experiments.sequence_sets.ADOPTION_RULE`) on the paired
+    differences of half A, half B and the synthetic suite (:func:`paired_difference`).
+
+    Returns
+    -------
+    (bool, str): whether the change is adopted, and why (the first clause that fails).
+    """
+    a, b, synthetic = (differences.get(k) for k in ("A", "B", "synthetic suite"))
+    if a is None or b is None:
+        return False, "needs both halves"
+    if len(a["per_seed"]) < 3:
+        return False, f"needs at least 3 seeds (has {len(a['per_seed'])})"
+    if not a["mean"] > a["standard_error"]:
+        return False, f"A: {a['mean']:+.3f} is not beyond its error {a['standard_error']:.3f}"
+    if not b["mean"] > 0:
+        return False, f"B: {b['mean']:+.3f} is not a gain"
+    if synthetic is not None and synthetic["mean"] < -synthetic["standard_error"]:
+        return False, f"synthetic suite: {synthetic['mean']:+.3f} ± {synthetic['standard_error']:.3f} loses"
+    return True, "passes on A, B" + (" and the synthetic suite" if synthetic is not None else "")
+
+
+def groups_of(order, synthetic_names) -> dict:
+    """{group label: names} for the tables: half A, half B, other real targets, the synthetic suite."""
+    real = [n for n in order if n not in synthetic_names]
+    groups = {"A": [n for n in real if n in DEVELOPMENT_A], "B": [n for n in real if n in DEVELOPMENT_B]}
+    groups["other"] = [n for n in real if n not in DEVELOPMENT_A and n not in DEVELOPMENT_B]
+    groups["synthetic suite"] = [n for n in order if n in synthetic_names]
+    return {label: names for label, names in groups.items() if names}
+
+
+def format_table(groups: dict, columns: dict) -> str:
+    """Markdown table: one row per sequence, a mean row after each group and over the real
+    targets; ``columns`` maps a header to {sequence: value} (a missing value is '-').
+
+    A column without a value on every target of a group gets its mean over the targets it
+    has and, in brackets, the first column's mean over the same targets: like with like.
+    """
     headers = ["sequence"] + list(columns)
+    first = next(iter(columns))
     lines = ["| " + " | ".join(headers) + " |", "|" + "---|" * len(headers)]
-    for name in names:
-        lines.append("| " + " | ".join([name] + [f"{columns[c][name]:.3f}" for c in columns]) + " |")
-    means = [f"**{np.mean([columns[c][n] for n in names]):.3f}**" for c in columns]
-    lines.append("| **mean** | " + " | ".join(means) + " |")
+
+    def mean_cell(column: str, names) -> str:
+        have = [n for n in names if n in columns[column]]
+        if not have:
+            return "-"
+        cell = f"**{np.mean([columns[column][n] for n in have]):.3f}**"
+        if len(have) < len(names):
+            cell += f" ({len(have)}; {first} {np.mean([columns[first][n] for n in have]):.3f})"
+        return cell
+
+    real = [n for label, names in groups.items() if label != "synthetic suite" for n in names]
+    for label, names in groups.items():
+        for name in names:
+            lines.append("| " + " | ".join([name] + [f"{columns[c][name]:.3f}" if name in columns[c] else "-"
+                                                     for c in columns]) + " |")
+        title = f"half {label}" if label in HALVES else label
+        lines.append(f"| **mean, {title} ({len(names)})** | " + " | ".join(mean_cell(c, names) for c in columns)
+                     + " |")
+    if len([g for g in groups if g != "synthetic suite"]) > 1:
+        lines.append(f"| **mean, all real ({len(real)})** | " + " | ".join(mean_cell(c, real) for c in columns)
+                     + " |")
     return "\n".join(lines)
+
+
+def lineage_overlaps(folder, sequences, trackers=LINEAGE_TRACKERS) -> tuple[dict, list]:
+    """{tracker: {sequence name: mean overlap}} of the OTB benchmark's own result files in
+    ``folder`` (:mod:`nrmlc.otb_results`), scored like NRMLC, and the notes of files not used."""
+    from nrmlc.otb_results import otb_result_boxes
+
+    table: dict = {}
+    notes: list = []
+    for tracker in trackers:
+        for sequence in sequences:
+            boxes, _, found_notes = otb_result_boxes(folder, tracker, sequence)
+            notes += found_notes
+            if boxes is not None:
+                table.setdefault(tracker, {})[sequence.name] = float(score(boxes, sequence, len(sequence)).mean_overlap)
+    return table, notes
+
+
+def default_beside(roots, name: str) -> Path | None:
+    """A folder ``name`` laid out beside a data root (``<root>/../otb_results``, ``../otb_attributes``)."""
+    for root in roots:
+        candidate = Path(root).parent / name
+        if candidate.is_dir():
+            return candidate
+    return None
 
 
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0],
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--data", default=None,
-                        help="data root (default: $NRMLC_DATA, else ../shared/data/sequences)")
+                        help="data root(s), joined by ':' (default: $NRMLC_DATA, else ../shared/data/sequences, "
+                             "and $NRMLC_MORE_DATA, else ../devdata/sequences, where they exist)")
     parser.add_argument("--seeds", default="0-4", help="seeds, e.g. 0-4 or 0,2 (default 0-4)")
     parser.add_argument("--preset", default="default", help="preset of the configuration (default: default)")
     parser.add_argument("--param", action="append", default=[], metavar="NAME=VALUE",
@@ -152,16 +367,55 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--baseline-param", action="append", default=[], metavar="NAME=VALUE",
                         help="change a parameter of the baseline (repeatable)")
     parser.add_argument("--no-baseline", action="store_true", help="skip the baseline column")
+    parser.add_argument("--half", choices=("A", "B", "all"), default="all",
+                        help="the choosing half A, the confirming half B, or both (default)")
     parser.add_argument("--sequences", default=None,
-                        help="comma-separated subset of the development sequences")
+                        help="comma-separated subset of the development sequences (overrides --half)")
     parser.add_argument("--synthetic", type=int, default=0, metavar="N",
                         help="add N synthetic sequences of 300 frames (the synthetic development suite)")
     parser.add_argument("--max-frames", type=int, default=None, help="track only the first N frames")
-    parser.add_argument("--no-peers", action="store_true", help="skip the OpenCV trackers")
+    parser.add_argument("--no-peers", action="store_true", help="skip the OpenCV trackers and the lineage")
+    parser.add_argument("--otb-results", default=None, metavar="DIR",
+                        help="the OTB benchmark's result files, for ASLA and IVT (default: otb_results/ "
+                             "beside a data root)")
+    parser.add_argument("--attributes", default=None, metavar="DIR",
+                        help="the OTB attribute files: also the mean overlap per attribute (default: "
+                             "otb_attributes/ beside a data root)")
     parser.add_argument("--jobs", type=int, default=None, help="worker processes (default: all cores)")
     parser.add_argument("--cache", default=str(DEFAULT_CACHE), help="run cache folder (default .cache/runs)")
     parser.add_argument("--json", default=None, metavar="PATH", help="also write the numbers as JSON")
     return parser
+
+
+def selected_names(half: str, sequences_text: str | None) -> tuple:
+    """The development targets ``--half`` / ``--sequences`` select."""
+    if sequences_text is not None:
+        names = tuple(n.strip() for n in sequences_text.split(",") if n.strip())  # "" = the synthetic suite only
+        unknown = [n for n in names if n not in DEVELOPMENT_SEQUENCES]
+        if unknown:
+            raise NrmlcError(f"--sequences: not development sequences: {', '.join(unknown)}")
+        return names
+    return DEVELOPMENT_SEQUENCES if half == "all" else HALVES[half]
+
+
+def differences_by_group(config_runs: dict, baseline_runs: dict, groups: dict, seeds) -> dict:
+    """{group: paired difference with its largest single-run changes}."""
+    return {label: dict(paired_difference(config_runs, baseline_runs, names),
+                        largest_runs=largest_run_changes(config_runs, baseline_runs, names, seeds))
+            for label, names in groups.items()}
+
+
+def format_differences(differences: dict, seeds) -> list[str]:
+    """One line per group: the paired difference, its error and the runs that moved most."""
+    lines = []
+    for label, d in differences.items():
+        spread = (f"± {d['standard_error']:.3f} (paired by seed; standard error over {len(seeds)} seeds)"
+                  if len(seeds) > 1 else "(one seed: no standard error)")
+        title = f"half {label}" if label in HALVES else f"the {label}"
+        lines.append(f"config - baseline on {title}: {d['mean']:+.3f} {spread}; {d['up']} of {d['n']} up, "
+                     f"{d['down']} down; the runs that changed most: "
+                     + ", ".join(f"{name} seed {seed} {change:+.3f}" for name, seed, change in d["largest_runs"]))
+    return lines
 
 
 def main(argv=None) -> int:
@@ -170,13 +424,9 @@ def main(argv=None) -> int:
         seeds = parse_seeds(args.seeds)
         config = configuration(args.preset, args.param)
         baseline = configuration(args.baseline_preset, args.baseline_param)
-        data = args.data or data_root_from_env() or (str(DEFAULT_DATA) if DEFAULT_DATA.is_dir() else None)
-        names = (DEVELOPMENT_SEQUENCES if args.sequences is None
-                 else tuple(n for n in args.sequences.split(",") if n.strip()))  # "" = the synthetic suite only
-        unknown = [n for n in names if n not in DEVELOPMENT_SEQUENCES]
-        if unknown:
-            raise NrmlcError(f"--sequences: not development sequences: {', '.join(unknown)}")
-        sequences = development_sequences(Path(data) if data else None, names, args.synthetic, args.max_frames)
+        roots = parse_roots(args.data)
+        names = selected_names(args.half, args.sequences)
+        sequences = development_sequences(roots, names, args.synthetic, args.max_frames)
         if not sequences:
             raise NrmlcError("no development sequences: give --data or --synthetic N")
     except NrmlcError as error:
@@ -184,35 +434,61 @@ def main(argv=None) -> int:
         return 2
     cache = RunCache(args.cache)
     order = [s.name for s in sequences]
+    groups = groups_of(order, {s.name for s in sequences if isinstance(s, SyntheticSequence)})
     config_runs = mean_overlaps(cache, config, sequences, seeds, args.max_frames, args.jobs)
     columns = {"config": {n: float(np.mean(v)) for n, v in config_runs.items()}}
-    baseline_runs, differences = None, {}
+    baseline_runs, differences, notes = None, {}, []
     if baseline != config and not args.no_baseline:
         baseline_runs = mean_overlaps(cache, baseline, sequences, seeds, args.max_frames, args.jobs)
         columns["baseline"] = {n: float(np.mean(v)) for n, v in baseline_runs.items()}
-        synthetic = {s.name for s in sequences if isinstance(s, SyntheticSequence)}
-        for label, group in (("development sequences", [n for n in order if n not in synthetic]),
-                             ("synthetic suite", [n for n in order if n in synthetic])):
-            if group:
-                differences[label] = dict(paired_difference(config_runs, baseline_runs, group),
-                                          largest_runs=largest_run_changes(config_runs, baseline_runs, group, seeds))
+        differences = differences_by_group(config_runs, baseline_runs, groups, seeds)
+    real = [s for s in sequences if not isinstance(s, SyntheticSequence)]
     if not args.no_peers:
         for tracker, values in peer_overlaps(cache, sequences, args.max_frames, args.jobs).items():
             columns[f"{tracker} (OpenCV)"] = values
+        otb_results = Path(args.otb_results) if args.otb_results else default_beside(roots, "otb_results")
+        if otb_results is not None and real and args.max_frames is None:
+            lineage, notes = lineage_overlaps(otb_results, real)
+            for tracker in LINEAGE_TRACKERS:
+                columns[f"{tracker} (OTB results)"] = lineage.get(tracker, {})
+    attribute_folder = Path(args.attributes) if args.attributes else default_beside(roots, "otb_attributes")
+    attribute_table, losses = None, None
+    if real:
+        measures = loss_measures(cache, config, real, seeds, args.jobs)
+        losses = {label: {"collapsed": collapsed({n: m["scale"] for n, m in measures.items()}, names),
+                          "lost_early": early_losses(measures, names)}
+                  for label, names in groups.items() if label != "synthetic suite"}
+        if attribute_folder is not None:
+            from nrmlc.attributes import read_attributes
+
+            attributes, _ = read_attributes(attribute_folder, [s.name for s in real])
+            attribute_table = attribute_means(columns, [s.name for s in real], attributes)
     changed = {k: v for k, v in config.as_dict().items() if TrackerParams().as_dict()[k] != v}
     print(f"config: preset {args.preset} {changed or ''}; baseline: preset {args.baseline_preset} "
           f"{args.baseline_param or ''}; seeds {','.join(map(str, seeds))}; mean overlap")
-    print(format_table(order, columns))
-    for label, d in differences.items():
-        spread = (f"± {d['standard_error']:.3f} (paired by seed; standard error over {len(seeds)} seeds)"
-                  if len(seeds) > 1 else "(one seed: no standard error)")
-        print(f"config - baseline on the {label}: {d['mean']:+.3f} {spread}; {d['up']} of {d['n']} up, "
-              f"{d['down']} down; the runs that changed most: "
-              + ", ".join(f"{name} seed {seed} {change:+.3f}" for name, seed, change in d["largest_runs"]))
+    print(format_table(groups, columns))
+    for line in format_differences(differences, seeds):
+        print(line)
+    for label, found in (losses or {}).items():
+        title = f"half {label}" if label in HALVES else label
+        print(f"config on {title}: tracked scale below {COLLAPSED_BELOW} over the last quarter on "
+              f"{len(found['collapsed'])} ({', '.join(found['collapsed']) or 'none'}); lock lost within the first "
+              f"{EARLY_SHARE:.0%} on {len(found['lost_early'])} ({', '.join(found['lost_early']) or 'none'})")
+    if attribute_table:
+        print(f"mean overlap by OTB attribute ({attribute_folder}):")
+        print(format_attribute_means(attribute_table, list(columns)))
+    verdict = adopted(differences) if differences else None
+    if verdict is not None and "A" in differences and "B" in differences:
+        print(f"adoption rule ({ADOPTION_RULE}): {'ADOPTED' if verdict[0] else 'not adopted'}: {verdict[1]}")
+    for note in notes:
+        print(f"note: {note}", file=sys.stderr)
     if args.json:
         io.write_json(args.json, {"config": config.as_dict(), "baseline": baseline.as_dict(), "seeds": seeds,
                                   "per_seed": config_runs, "baseline_per_seed": baseline_runs, "columns": columns,
-                                  "differences": differences})
+                                  "groups": groups, "differences": differences, "losses": losses,
+                                  "attributes": attribute_table,
+                                  "adopted": None if verdict is None else {"adopted": verdict[0],
+                                                                           "why": verdict[1]}})
     return 0
 
 
