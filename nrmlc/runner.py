@@ -110,6 +110,16 @@ def frames_tracked(sequence, n_frames: int | None) -> int:
     return n if n_frames is None else max(1, min(n, int(n_frames)))
 
 
+#: Fields added after runs were cached, with the value that leaves the tracker as it was: at
+#: that value a field is left out of the key, so that the runs from before it keep theirs.
+KEY_LEAVES_OUT = {"scale_prior": 0.0}
+
+
+def params_for_key(params: TrackerParams) -> dict:
+    """``params.as_dict()`` without the fields of :data:`KEY_LEAVES_OUT` at their no-op value."""
+    return {k: v for k, v in params.as_dict().items() if not (k in KEY_LEAVES_OUT and v == KEY_LEAVES_OUT[k])}
+
+
 def description_key(description: dict) -> str:
     """The cache key of a job: a hash of its JSON description (keys sorted)."""
     text = json.dumps(description, sort_keys=True, default=str)
@@ -149,7 +159,7 @@ class RunSpec:
     def description(self, version: str) -> dict:
         # Do not change: it decides the key of every cached run (tests/test_runner.py pins one).
         description = {"sequence": sequence_identity(self.sequence), "sequence_name": self.sequence.name,
-                       "params": self.params.as_dict(), "seed": self.seed, "n_frames": self.n_frames,
+                       "params": params_for_key(self.params), "seed": self.seed, "n_frames": self.n_frames,
                        "code_version": version}
         if self.recentre_every:  # only then, so that ordinary runs keep their keys
             description["recentre_every"] = int(self.recentre_every)
