@@ -118,7 +118,7 @@ def test_run_keys_are_pinned():
     spec = RunSpec(tiny_sequence(0), TrackerParams(), seed=3, n_frames=5, label="not part of the key")
     description = spec.description("0123456789abcdef")
     assert description == {"sequence": sequence_identity(spec.sequence), "sequence_name": "tiny-0",
-                           "params": TrackerParams().as_dict(), "seed": 3, "n_frames": 5,
+                           "params": runner.params_for_key(TrackerParams()), "seed": 3, "n_frames": 5,
                            "code_version": "0123456789abcdef"}
     text = json.dumps(description, sort_keys=True, default=str)
     assert spec.key("0123456789abcdef") == hashlib.sha256(text.encode()).hexdigest()[:24]
@@ -449,3 +449,12 @@ def test_pool_workers_end_when_their_parent_is_killed(tmp_path):
     for pid in left:  # do not leave them behind when the test fails
         os.kill(pid, signal.SIGKILL)
     assert not left
+
+
+def test_a_switch_at_its_no_op_value_is_left_out_of_the_key():
+    from nrmlc.runner import KEY_LEAVES_OUT, params_for_key
+    from nrmlc.tracker.params import TrackerParams
+
+    assert "scale_prior" in KEY_LEAVES_OUT and "scale_prior" not in params_for_key(TrackerParams())
+    assert params_for_key(TrackerParams(scale_prior=0.33))["scale_prior"] == 0.33
+    assert set(TrackerParams().as_dict()) - set(params_for_key(TrackerParams())) == set(KEY_LEAVES_OUT)
