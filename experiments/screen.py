@@ -126,7 +126,8 @@ def main(argv=None) -> int:
     parser.add_argument("--baseline-version", default=None, metavar="CODE_VERSION",
                         help="read the baseline's runs at this code version, after checking them bit for bit")
     parser.add_argument("--cached-only", action="store_true",
-                        help="compute nothing: report the variants whose runs are all in the cache, skip the rest")
+                        help="compute no variant: report those whose runs are all in the cache and skip the "
+                             "rest (the baseline's missing runs are still computed)")
     parser.add_argument("--jobs", type=int, default=None)
     parser.add_argument("--cache", default=str(DEFAULT_CACHE))
     parser.add_argument("--json", default=None)
