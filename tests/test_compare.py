@@ -19,8 +19,6 @@ from nrmlc.data import open_sequence, synthetic_suite, write_otb_sequence
 from nrmlc.errors import DataError
 from nrmlc.metrics import evaluate
 
-FIXTURES = Path(__file__).resolve().parent / "fixtures" / "otb_results"
-
 
 def run_main(argv, capsys):
     code = main([str(a) for a in argv])

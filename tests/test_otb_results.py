@@ -1,6 +1,6 @@
 """The OTB toolkit's ``<Seq>_<Tracker>.mat`` result files (nrmlc/otb_results.py) and their use in
-``nrmlc evaluate``: small fixture files written by ``tests/fixtures/otb_results/make_fixtures.py``,
-and the benchmark's real files when they are on this machine.
+``nrmlc evaluate``: small files written for the tests by :mod:`nrmlc.testing.otb_files`, and the
+benchmark's real files when they are on this machine.
 """
 from __future__ import annotations
 
@@ -28,11 +28,18 @@ from nrmlc.otb_results import (
     sequence_key,
     split_result_name,
 )
+from nrmlc.testing.otb_files import write_otb_result_files
 
-FIXTURES = Path(__file__).resolve().parent / "fixtures" / "otb_results"
+FIXTURES: Path  # the small result files, written once per module by the fixture below
 WORK = Path(__file__).resolve().parent.parent.parent
 REAL_RESULTS = Path(os.environ.get("NRMLC_OTB_RESULTS", WORK / "devdata" / "otb_results"))
 REAL_ANNOTATIONS = Path(os.environ.get("NRMLC_OTB_ANNOTATIONS", WORK / "shared" / "data" / "annotations" / "otb_tb100"))
+
+
+@pytest.fixture(scope="module", autouse=True)
+def _otb_result_files(tmp_path_factory):
+    global FIXTURES
+    FIXTURES = write_otb_result_files(tmp_path_factory.mktemp("otb_results"))
 
 
 def truth() -> np.ndarray:
