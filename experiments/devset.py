@@ -117,14 +117,41 @@ def development_sequences(roots, names, n_synthetic: int, max_frames: int | None
     return sequences
 
 
-def mean_overlaps(cache: RunCache, params: TrackerParams, sequences, seeds, max_frames, jobs) -> dict:
-    """{sequence name: (mean over seeds of the mean overlap, per-seed list)}."""
-    specs = specs_for(sequences, params, seeds, n_frames=max_frames)
-    results = cache.run(specs, jobs=jobs)
+def run_measures(results, specs) -> dict:
+    """Per target, the measures of each run (in the order of ``specs``, one per seed).
+
+    Returns
+    -------
+    dict of target -> {"overlap": [mean overlap], "scale": [:func:`tracked_scale`],
+    "lost_at": [share of its frames before the loss of lock, or None]}
+    """
+    from experiments.failure_mechanisms import lock_lost_at
+
     table: dict = {}
     for spec, result in zip(specs, results):
-        table.setdefault(spec.sequence.name, []).append(float(score(result.boxes, spec.sequence).mean_overlap))
+        evaluation = score(result.boxes, spec.sequence)
+        lost = lock_lost_at(evaluation.overlaps, evaluation.frames)
+        entry = table.setdefault(spec.sequence.name, {"overlap": [], "scale": [], "lost_at": []})
+        entry["overlap"].append(float(evaluation.mean_overlap))
+        entry["scale"].append(tracked_scale(result.boxes, spec.sequence))
+        entry["lost_at"].append(None if lost is None else lost / len(result.boxes))
     return table
+
+
+def configuration_runs(cache: RunCache, params: TrackerParams, sequences, seeds, max_frames, jobs) -> dict:
+    """:func:`run_measures` of ``params`` on ``sequences`` (computed where the cache lacks them)."""
+    specs = specs_for(sequences, params, seeds, n_frames=max_frames)
+    return run_measures(cache.run(specs, jobs=jobs), specs)
+
+
+def overlaps_of(measures: dict) -> dict:
+    """{target: [mean overlap of each seed]} of :func:`run_measures`."""
+    return {name: entry["overlap"] for name, entry in measures.items()}
+
+
+def scales_of(measures: dict) -> dict:
+    """{target: [tracked scale of each seed]} of :func:`run_measures`."""
+    return {name: entry["scale"] for name, entry in measures.items()}
 
 
 #: The share of the annotated frames at the end over which :func:`tracked_scale` is taken, and
@@ -164,23 +191,6 @@ def collapsed(scales: dict, names) -> list[str]:
 #: A run "lost early" when lock is lost (:func:`experiments.failure_mechanisms.lock_lost_at`)
 #: within this share of its frames.
 EARLY_SHARE = 0.05
-
-
-def loss_measures(cache: RunCache, params: TrackerParams, sequences, seeds, jobs=None) -> dict:
-    """{target: {"scale": [per seed], "lost_at": [share of frames before the loss of lock, or None]}}
-    from the cached runs of ``params`` (:func:`tracked_scale`, the failure measures' loss of lock)."""
-    from experiments.failure_mechanisms import lock_lost_at
-
-    real = [s for s in sequences if not isinstance(s, SyntheticSequence)]
-    specs = specs_for(real, params, seeds)
-    table: dict = {}
-    for spec, result in zip(specs, cache.run(specs, jobs=jobs, progress=False)):
-        evaluation = score(result.boxes, spec.sequence)
-        lost = lock_lost_at(evaluation.overlaps, evaluation.frames)
-        entry = table.setdefault(spec.sequence.name, {"scale": [], "lost_at": []})
-        entry["scale"].append(tracked_scale(result.boxes, spec.sequence))
-        entry["lost_at"].append(None if lost is None else lost / len(spec.sequence))
-    return table
 
 
 def early_losses(measures: dict, names, share: float = EARLY_SHARE) -> list[str]:
@@ -285,8 +295,10 @@ def adopted(differences: dict) -> tuple[bool, str]:
     return True, "passes on A, B" + (" and the synthetic suite" if synthetic is not None else "")
 
 
-def groups_of(order, synthetic_names) -> dict:
+def groups_of(sequences) -> dict:
     """{group label: names} for the tables: half A, half B, other real targets, the synthetic suite."""
+    order = [s.name for s in sequences]
+    synthetic_names = {s.name for s in sequences if isinstance(s, SyntheticSequence)}
     real = [n for n in order if n not in synthetic_names]
     groups = {"A": [n for n in real if n in DEVELOPMENT_A], "B": [n for n in real if n in DEVELOPMENT_B]}
     groups["other"] = [n for n in real if n not in DEVELOPMENT_A and n not in DEVELOPMENT_B]
@@ -433,13 +445,14 @@ def main(argv=None) -> int:
         print(f"error: {error}", file=sys.stderr)
         return 2
     cache = RunCache(args.cache)
-    order = [s.name for s in sequences]
-    groups = groups_of(order, {s.name for s in sequences if isinstance(s, SyntheticSequence)})
-    config_runs = mean_overlaps(cache, config, sequences, seeds, args.max_frames, args.jobs)
+    groups = groups_of(sequences)
+    measures = configuration_runs(cache, config, sequences, seeds, args.max_frames, args.jobs)
+    config_runs = overlaps_of(measures)
     columns = {"config": {n: float(np.mean(v)) for n, v in config_runs.items()}}
     baseline_runs, differences, notes = None, {}, []
     if baseline != config and not args.no_baseline:
-        baseline_runs = mean_overlaps(cache, baseline, sequences, seeds, args.max_frames, args.jobs)
+        baseline_runs = overlaps_of(configuration_runs(cache, baseline, sequences, seeds, args.max_frames,
+                                                       args.jobs))
         columns["baseline"] = {n: float(np.mean(v)) for n, v in baseline_runs.items()}
         differences = differences_by_group(config_runs, baseline_runs, groups, seeds)
     real = [s for s in sequences if not isinstance(s, SyntheticSequence)]
@@ -454,8 +467,7 @@ def main(argv=None) -> int:
     attribute_folder = Path(args.attributes) if args.attributes else default_beside(roots, "otb_attributes")
     attribute_table, losses = None, None
     if real:
-        measures = loss_measures(cache, config, real, seeds, args.jobs)
-        losses = {label: {"collapsed": collapsed({n: m["scale"] for n, m in measures.items()}, names),
+        losses = {label: {"collapsed": collapsed(scales_of(measures), names),
                           "lost_early": early_losses(measures, names)}
                   for label, names in groups.items() if label != "synthetic suite"}
         if attribute_folder is not None:

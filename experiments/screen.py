@@ -22,7 +22,7 @@ import sys
 import numpy as np
 
 from experiments.devset import (adopted, collapsed, development_sequences, differences_by_group, groups_of,
-                                parse_roots, score, selected_names, tracked_scale)
+                                overlaps_of, parse_roots, run_measures, scales_of, selected_names)
 from experiments.grid import specs_for
 from nrmlc import io
 from nrmlc.benchmark import parse_seeds
@@ -54,17 +54,6 @@ def parse_variant(name: str, text: str, base_preset: str) -> TrackerParams:
         raise NrmlcError(f"--variant {name}: {error}") from None
 
 
-def per_seed_overlaps(results, specs) -> tuple[dict, dict]:
-    """({sequence: [mean overlap of each seed]}, {sequence: [tracked scale of each seed]}) of
-    one configuration's runs (:func:`experiments.devset.tracked_scale`)."""
-    overlaps: dict = {}
-    scales: dict = {}
-    for spec, result in zip(specs, results):
-        overlaps.setdefault(spec.sequence.name, []).append(float(score(result.boxes, spec.sequence).mean_overlap))
-        scales.setdefault(spec.sequence.name, []).append(tracked_scale(result.boxes, spec.sequence))
-    return overlaps, scales
-
-
 def baseline_at_version(cache: RunCache, specs: list, version: str, jobs) -> list:
     """The baseline's results as stored at code version ``version`` (see the module docstring).
 
@@ -78,7 +67,7 @@ def baseline_at_version(cache: RunCache, specs: list, version: str, jobs) -> lis
     other = RunCache(cache.folder)
     other.version = version
     missing = [spec.label or f"{spec.sequence.name} seed {spec.seed}" for spec in specs
-               if other._readable(other.path(spec)) is None]
+               if not other.has(spec)]
     if missing:
         raise NrmlcError(f"--baseline-version {version}: {len(missing)} baseline runs are not in {cache.folder} "
                          f"(e.g. {missing[0]})")
@@ -143,8 +132,7 @@ def main(argv=None) -> int:
         print(f"error: {error}", file=sys.stderr)
         return 2
     cache = RunCache(args.cache)
-    order = [s.name for s in sequences]
-    groups = groups_of(order, {s.name for s in sequences if isinstance(s, SyntheticSequence)})
+    groups = groups_of(sequences)
     real = [n for label, names in groups.items() if label != "synthetic suite" for n in names]
     if real:
         groups["all real"] = real
@@ -153,7 +141,7 @@ def main(argv=None) -> int:
     # finished whole configurations, which a rerun reads from the cache.
     first = (baseline_at_version(cache, batches[0], args.baseline_version, args.jobs)
              if args.baseline_version else cache.run(batches[0], jobs=args.jobs))
-    runs = [per_seed_overlaps(first, batches[0])]
+    runs = [run_measures(first, batches[0])]
     if args.cached_only:
         complete = [all(cache.has(spec) for spec in batch) for batch in batches[1:]]
         skipped = [name for (name, _), done in zip(variants, complete) if not done]
@@ -161,21 +149,23 @@ def main(argv=None) -> int:
             print(f"not in the cache yet, skipped: {', '.join(skipped)}", file=sys.stderr)
         variants = [v for v, done in zip(variants, complete) if done]
         batches = batches[:1] + [b for b, done in zip(batches[1:], complete) if done]
-    runs += [per_seed_overlaps(cache.run(batch, jobs=args.jobs), batch) for batch in batches[1:]]
+    runs += [run_measures(cache.run(batch, jobs=args.jobs), batch) for batch in batches[1:]]
     rows = []
     halves = {label: names for label, names in groups.items() if label in ("A", "B")}
 
     def collapsed_by_half(scales):
         return {label: collapsed(scales, names) for label, names in halves.items()}
 
-    for (name, params), (variant_runs, scales) in zip(variants, runs[1:]):
-        differences = differences_by_group(variant_runs, runs[0][0], groups, seeds)
+    base_overlaps, base_scales = overlaps_of(runs[0]), scales_of(runs[0])
+    for (name, params), measures in zip(variants, runs[1:]):
+        variant_runs, scales = overlaps_of(measures), scales_of(measures)
+        differences = differences_by_group(variant_runs, base_overlaps, groups, seeds)
         verdict = adopted(differences)
         rows.append({"name": name, "params": params.as_dict(), "differences": differences,
                      "adopted": verdict[0], "why": verdict[1], "per_seed": variant_runs, "scales": scales,
                      "collapsed": collapsed_by_half(scales)})
-    means = {label: float(np.mean([np.mean(runs[0][0][n]) for n in names])) for label, names in groups.items()}
-    base_collapsed = collapsed_by_half(runs[0][1])
+    means = {label: float(np.mean([np.mean(base_overlaps[n]) for n in names])) for label, names in groups.items()}
+    base_collapsed = collapsed_by_half(base_scales)
     print(f"baseline: preset {args.baseline_preset} {args.baseline or ''}; seeds {args.seeds}; mean overlap "
           + ", ".join(f"{label} {value:.3f}" for label, value in means.items())
           + "; collapsed (scale < 0.7 over the last quarter): "
@@ -185,8 +175,8 @@ def main(argv=None) -> int:
     if args.markdown:
         io.write_text(args.markdown, table + "\n")
     if args.json:
-        io.write_json(args.json, {"baseline": baseline.as_dict(), "baseline_per_seed": runs[0][0],
-                                  "baseline_scales": runs[0][1], "baseline_collapsed": base_collapsed,
+        io.write_json(args.json, {"baseline": baseline.as_dict(), "baseline_per_seed": base_overlaps,
+                                  "baseline_scales": base_scales, "baseline_collapsed": base_collapsed,
                                   "seeds": seeds, "groups": groups, "baseline_means": means, "variants": rows})
     return 0
 
