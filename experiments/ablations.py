@@ -9,24 +9,21 @@ Families, each against the default tracker (the first row of each):
   with k = 5, 8 or 10;
 - occlusion detection on vs off;
 - confidence: the corrected h = exp(-alpha (eps+ - eps-)) vs the printed form;
-- every other switch of ``TrackerParams`` (:func:`switches`: a flag, or a string
-  with named choices), every choice of each: template sampling (SCM's vs the
-  printed annulus), propagation (condensation vs around the best), translation
-  noise (relative to the size vs the classic trackers' 4 image pixels),
-  patch normalisation (unit vs
-  centred), dictionaries (joint vs per class), and any switch added later;
+- every other switch of ``TrackerParams`` (:func:`switches`: a flag, or a field with
+  declared choices, ``TrackerParams.choices``), every choice of each: template sampling
+  (SCM's vs the printed annulus), propagation (condensation vs around the best),
+  translation noise (relative to the size vs the classic trackers' 4 image pixels), and
+  any switch added later;
 - preset: the default tracker vs ``TrackerParams.paper()`` (the paper as printed);
 - scale noise of the motion model (which the paper does not state): 1% of the
   size per frame (default) vs 0.25%, 0.5% and 2%;
 - particles (not stated either): the default's count vs half and twice as many;
 - the confidence scale alpha (under condensation the likelihood's sharpness):
   the default vs the paper's 2.5;
-- any other value in which the default departs from the paper preset (e.g. a share of
-  wide translation noise, if switched on): the default vs the paper's value;
-- every numeric extension left off by default (:data:`TRIAL_VALUES`: a share of wide
-  translation noise, the estimate as a mean of the top particles, a velocity in the motion
-  model, anti-aliased patches, the local-patch generative term, the scale prior) and SCM's negative push-out
-  zone: the default vs a trial value;
+- any other value in which the default departs from the paper preset (e.g. the
+  re-detection count): the default vs the paper's value;
+- every numeric extension left off by default (:data:`TRIAL_VALUES`: the local-patch
+  generative term) and SCM's negative push-out zone: the default vs a trial value;
 - the generative term's coding, when it is on with a coarser grid than SCM's: the default vs
   SCM's 2-px grid on 150 candidates;
 - the template spread: under SCM sampling the positive centres' sigma (half and
@@ -43,6 +40,7 @@ occluded. Outputs ``ablations.{png,csv,json}``.
 """
 from __future__ import annotations
 
+import dataclasses
 import functools
 import sys
 
@@ -76,8 +74,7 @@ METRICS = (("overlap", "mean overlap", 3), ("cle", "CLE (px)", 1), ("negative_sh
 #: Numeric extensions beyond the paper, and lineage values, with a trial value each: a row each
 #: when the default has the paper's (off) value. Their screening on the development sequences,
 #: which chose the defaults, is in docs/FINDINGS.md.
-TRIAL_VALUES = {"wide_share": 0.2, "estimate_count": 20, "velocity_damping": 0.5, "antialias": 0.5,
-                "negative_push": 0.5, "generative_weight": 10.0, "scale_prior": 0.33}
+TRIAL_VALUES = {"negative_push": 0.5, "generative_weight": 10.0}
 
 #: Candidates coded by the generative term in round 13 (SCM's grid); its coding row compares them.
 ROUND13_CANDIDATES = 150
@@ -87,31 +84,21 @@ OWN_FAMILIES = ("coding", "confidence", "occlusion_detection")
 
 
 def _choices(field: str) -> tuple:
-    """The choices of a switch of :class:`TrackerParams`: (True, False) for a flag, else the
-    upper-case tuple of :mod:`nrmlc.tracker.params` that holds its default value."""
-    from nrmlc.tracker import params as module
+    """The choices of a switch of :class:`TrackerParams`, as the class declares them."""
+    from nrmlc.tracker.params import TrackerParams
 
-    default = getattr(module.TrackerParams(), field)
-    if isinstance(default, bool):
-        return (default, not default)
-    for name in dir(module):
-        value = getattr(module, name)
-        if name.isupper() and isinstance(value, tuple) and default in value and all(isinstance(v, str) for v in value):
-            return value
-    return (default,)
+    return TrackerParams.choices(field)
 
 
 def switches() -> list[tuple[str, str]]:
-    """(family, field) of every switch of :class:`TrackerParams` (a flag, or a string with named
+    """(family, field) of every switch of :class:`TrackerParams` (a flag, or a field with declared
     choices) beyond the ones with a family of their own: each new switch gets its ablation rows."""
     import dataclasses
 
     from nrmlc.tracker.params import TrackerParams
 
-    default = TrackerParams()
     return [(field.name.replace("_", " "), field.name) for field in dataclasses.fields(TrackerParams)
-            if field.name not in OWN_FAMILIES and isinstance(getattr(default, field.name), (str, bool))
-            and len(_choices(field.name)) > 1]
+            if field.name not in OWN_FAMILIES and len(_choices(field.name)) > 1]
 
 
 def families(context) -> list[tuple[str, list[tuple[str, object]]]]:
@@ -191,11 +178,17 @@ def _with_scale_sigma(sigmas: tuple, scale_sigma: float) -> tuple:
     return sigmas[:2] + (float(scale_sigma),) + sigmas[3:]
 
 
+def _specs(context, sequences, params, seeds, label: str) -> list:
+    """The runs of one configuration, recording the negative shares the table reports."""
+    return [dataclasses.replace(spec, negative_shares=True) for spec in context.specs(sequences, params, seeds,
+                                                                                      label=label)]
+
+
 def runs(context) -> list:
     """Every configuration of every family on the paper's given sequences, every ablation seed."""
     sequences = context.paper_sequences()
     return [spec for family, configs in families(context) for label, params in configs
-            for spec in context.specs(sequences, params, context.ablation_seeds, label=f"ablation {family}: {label}")]
+            for spec in _specs(context, sequences, params, context.ablation_seeds, f"ablation {family}: {label}")]
 
 
 def _run_numbers(result, spec) -> dict:
@@ -218,7 +211,7 @@ def collect(context) -> dict:
     for family, configs in families(context):
         rows = []
         for label, params in configs:
-            specs = context.specs(sequences, params, seeds, label=f"ablation {family}: {label}")
+            specs = _specs(context, sequences, params, seeds, f"ablation {family}: {label}")
             numbers = {(s.sequence.name, s.seed): _run_numbers(r, s) for s, r in zip(specs, context.run(specs))}
             row = {"label": label, "changed": params_differences(params, context.base_params)}
             for key in ("overlap", "cle", "negative_share_c", "negative_share_w", "occluded"):

@@ -226,7 +226,6 @@ def machine_info() -> dict:
 #: templates are updated count as the template update.
 STAGES = {
     "warp_patches": "warp (particles)",
-    "centre_patches": "centring (particles)",
     "candidate_template_dots": "product (sgemm)",
     "squared_norms": "squared norms",
     "nearest_templates": "nearest templates",

@@ -132,25 +132,25 @@ def sampled_frames(n_frames: int, every: int, update_interval: int) -> list[int]
 
 def _record(tracker, frame_index: int, rng: np.random.Generator, n_record: int) -> dict | None:
     """Internals of the current frame's coding step (None if templates already changed)."""
-    cand = tracker.last_candidates
+    cand = tracker.last_coding
     templates = tracker.templates
-    patches = cand["patches"]
+    patches = cand.patches
     n_all = len(patches)
-    best = int(cand["best"])
+    best = int(np.argmax(cand.log_confidence))  # the estimate (step's arg max)
     pick = rng.choice(n_all, size=min(n_record, n_all), replace=False)
     pick = np.unique(np.concatenate([pick, [best]]))
     y = patches[pick].astype(np.float64)
     T = templates.astype(np.float64)
     dots = y @ T.T
     # The tracker's dots must be these: otherwise the templates were replaced after coding.
-    if not np.allclose(dots, cand["dots"][pick], rtol=0, atol=1e-5):
+    if not np.allclose(dots, cand.dots[pick], rtol=0, atol=1e-5):
         return None
     n_pos = len(tracker.positive_templates)
-    k_max = cand["neighbours"].shape[1]
+    k_max = cand.neighbours.shape[1]
     n_near = min(N_NEAREST, len(T))
     sq = np.einsum("ij,ij->i", T, T)
     distance = sq[None, :] - 2.0 * dots  # |y|^2 is constant per row
-    tracker_nb = cand["neighbours"][pick].astype(np.int64)
+    tracker_nb = cand.neighbours[pick].astype(np.int64)
     rows = np.arange(len(pick))[:, None]
     distance[rows, tracker_nb] = -np.inf  # the tracker's neighbours come first, in its order
     order = np.argsort(distance, axis=1, kind="stable")[:, :n_near]
@@ -165,7 +165,7 @@ def _record(tracker, frame_index: int, rng: np.random.Generator, n_record: int) 
         gram=gram, neighbours=neighbours.astype(np.int16), positive=(neighbours < n_pos),
         is_best=(pick == best), a_min=A10.min(axis=1), a_max=A10.max(axis=1),
         a_sample=sample.astype(np.float32),
-        coefficients=cand["coefficients"][pick].astype(np.float64), weights=cand["weights"][pick].astype(np.float64),
+        coefficients=cand.coefficients[pick].astype(np.float64), weights=cand.weights[pick].astype(np.float64),
         candidate_means=patches.mean(axis=1).astype(np.float32),
         best_mean=np.float32(patches[best].mean()),
         template_means=template_means.astype(np.float32),

@@ -96,7 +96,7 @@ def collect_jobs(context, modules, failures: list) -> dict:
 def job_cost(job) -> float:
     """Work of a job in 600-particle NRMLC frames without the generative term (measured: the
     particle count scales the time about linearly; the exact constrained coder is about 1.3x
-    slower, per-class dictionaries, which code twice, about 1.35x)."""
+    slower)."""
     params = getattr(job, "params", None)
     if params is None:  # an OpenCV peer
         return job.frames() * ESTIMATE_FPS_PER_WORKER / ESTIMATE_PEER_FPS
@@ -108,8 +108,6 @@ def job_cost(job) -> float:
         factor += 0.1 + 2.5 * params.generative_candidates * n_local / (150 * 196)
     if params.coding == "constrained":
         factor *= 1.3
-    if getattr(params, "dictionaries", "joint") == "per_class":
-        factor *= 1.35
     return job.frames() * factor
 
 

@@ -97,10 +97,10 @@ class ScaleProfile:
                 states = np.repeat(box_to_state(groundtruth[index][None, :], params.patch_size), len(SCALES), axis=0)
                 states[:, 2] *= np.asarray(SCALES)
                 # encode() reads the templates and draws nothing: the run's boxes are unchanged.
-                coded = tracker.encode(tracker.patches(tracker.prefilter(as_gray_frame(image)), states))
+                coding = tracker.encode(tracker.patches(as_gray_frame(image), states))
                 frames.append(index)
-                error_positive.append(coded["error_positive"])
-                error_negative.append(coded["error_negative"])
+                error_positive.append(coding.error_positive)
+                error_negative.append(coding.error_negative)
             boxes.append(np.asarray(tracker.update(image), dtype=np.float64))
         empty = np.empty((0, len(SCALES)))
         return {"boxes": np.array(boxes), "frames": np.array(frames, dtype=np.int64),

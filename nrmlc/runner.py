@@ -110,14 +110,9 @@ def frames_tracked(sequence, n_frames: int | None) -> int:
     return n if n_frames is None else max(1, min(n, int(n_frames)))
 
 
-#: Fields added after runs were cached, with the value that leaves the tracker as it was: at
-#: that value a field is left out of the key, so that the runs from before it keep theirs.
-KEY_LEAVES_OUT = {"scale_prior": 0.0}
-
-
 def params_for_key(params: TrackerParams) -> dict:
-    """``params.as_dict()`` without the fields of :data:`KEY_LEAVES_OUT` at their no-op value."""
-    return {k: v for k, v in params.as_dict().items() if not (k in KEY_LEAVES_OUT and v == KEY_LEAVES_OUT[k])}
+    """The parameters as a run's key holds them (``params.as_dict()``)."""
+    return params.as_dict()
 
 
 def description_key(description: dict) -> str:
@@ -142,6 +137,9 @@ class RunSpec:
     recentre_every : int
         Diagnostics: 0 (an ordinary run) or move the estimate to the ground
         truth after every this many frames (see :func:`track_sequence`).
+    negative_shares : bool
+        Also record the per-frame negative shares of c and w (``track_sequence``'s option; only
+        the reports that show them ask for it).
     """
 
     sequence: object
@@ -150,6 +148,7 @@ class RunSpec:
     n_frames: int | None = None
     label: str = ""
     recentre_every: int = 0
+    negative_shares: bool = False
 
     #: Tracking runs live at the top of the cache.
     folder: ClassVar[str] = ""
@@ -163,6 +162,8 @@ class RunSpec:
                        "code_version": version}
         if self.recentre_every:  # only then, so that ordinary runs keep their keys
             description["recentre_every"] = int(self.recentre_every)
+        if self.negative_shares:  # likewise
+            description["negative_shares"] = True
         return description
 
     def __post_init__(self) -> None:
@@ -198,7 +199,8 @@ class RunSpec:
     def execute(self) -> dict:
         truth = self.sequence.groundtruth if self.recentre_every else None
         result = track_sequence(self.sequence, self.params, seed=self.seed, n_frames=self.n_frames,
-                                recentre_boxes=truth, recentre_every=self.recentre_every)
+                                recentre_boxes=truth, recentre_every=self.recentre_every,
+                                negative_shares=self.negative_shares)
         return result.to_arrays()
 
     def result(self, arrays: dict) -> TrackResult:

@@ -6,8 +6,8 @@ from hypothesis import given, settings, strategies as st
 
 from nrmlc.errors import ParameterError
 from nrmlc.geometry import affine_for_opencv, box_to_state, state_to_affine
-from nrmlc.kernels.warp import centre_patches, warp_patches
-from nrmlc.testing.reference import centre_patches_reference, warp_patches_reference
+from nrmlc.kernels.warp import warp_patches
+from nrmlc.testing.reference import warp_patches_reference
 
 
 def _frame(height=60, width=80, seed=0):
@@ -152,37 +152,3 @@ def test_bad_inputs_are_named(frame, affines, message):
         warp_patches(frame, affines)
 
 
-def test_centre_patches_matches_reference_and_handles_flat_patches():
-    rng = np.random.default_rng(4)
-    patches = rng.random((50, 1024)).astype(np.float32)
-    patches[7] = 0.25  # flat: centring leaves nothing, so the flat unit vector
-    patches[8] = 0.0
-    patches[9, :] = 1.0
-    patches[9, 5] = 2.0  # a single spike survives centring
-    centred = centre_patches(patches)
-    assert centred.dtype == np.float32 and centred.flags.c_contiguous and centred.shape == patches.shape
-    np.testing.assert_allclose(centred, centre_patches_reference(patches), atol=2e-6)
-    np.testing.assert_array_equal(centred[7], np.float32(1 / 32))
-    np.testing.assert_array_equal(centred[8], np.float32(1 / 32))
-    np.testing.assert_allclose(np.linalg.norm(centred.astype(np.float64), axis=1), 1.0, atol=1e-6)
-    np.testing.assert_allclose(centred.astype(np.float64).sum(axis=1)[10:], 0.0, atol=1e-4)
-
-
-def test_centre_patches_is_the_same_for_any_thread_count():
-    patches = np.random.default_rng(5).random((301, 1024)).astype(np.float32)
-    previous = numba.get_num_threads()
-    try:
-        numba.set_num_threads(1)
-        one = centre_patches(patches)
-        numba.set_num_threads(min(2, numba.config.NUMBA_NUM_THREADS))
-        two = centre_patches(patches)
-    finally:
-        numba.set_num_threads(previous)
-    np.testing.assert_array_equal(one, two)
-
-
-def test_centre_patches_checks_its_input():
-    with pytest.raises(ParameterError, match="patches must have dtype float32"):
-        centre_patches(np.zeros((3, 4)))
-    with pytest.raises(ParameterError, match="patches must be 2-D"):
-        centre_patches(np.zeros(4, np.float32))

@@ -32,11 +32,10 @@ from nrmlc.kernels.distance import (  # noqa: E402
     squared_norms,
     template_gram,
 )
-from nrmlc.kernels.warp import centre_patches, warp_patches  # noqa: E402
+from nrmlc.kernels.warp import warp_patches  # noqa: E402
 
 __all__ = [
     "warp_patches",
-    "centre_patches",
     "candidate_template_dots",
     "squared_norms",
     "template_gram",

@@ -87,31 +87,6 @@ def warp_patches_reference(frame, affines, patch_size=32):
     return out
 
 
-
-def centre_patches_reference(patches):
-    """Rows minus their mean, rescaled to unit norm; flat rows become ``1/sqrt(dim)`` (float64).
-
-    Parameters
-    ----------
-    patches : (n, dim) array
-
-    Returns
-    -------
-    centred : (n, dim) float64
-    """
-    patches = np.asarray(patches, dtype=np.float64)
-    centred = patches - patches.mean(axis=1, keepdims=True)
-    norms = np.linalg.norm(centred, axis=1, keepdims=True)
-    flat = norms[:, 0] <= 1e-12
-    centred[~flat] /= norms[~flat]
-    centred[flat] = 1.0 / np.sqrt(patches.shape[1])
-    return centred
-
-# ===========================================================================
-# 3. Distances and nearest templates
-# ===========================================================================
-
-
 def reference_dots(candidates: np.ndarray, templates: np.ndarray) -> np.ndarray:
     """``Y T'`` in float64, element by element definition via einsum."""
     return np.einsum("id,td->it", candidates.astype(np.float64), templates.astype(np.float64))

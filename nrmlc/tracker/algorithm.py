@@ -14,8 +14,7 @@ Per frame:
    and combine the codes with dictionary weights w (Algorithm 1, eq. allcw)
    (:mod:`nrmlc.kernels.coding`);
 5. score each candidate with log h = -alpha (eps_pos - eps_neg) (in the log domain, so
-   no alpha overflows); the estimate is the most confident candidate, or the
-   confidence-weighted mean of the ``estimate_count`` most confident. If the best
+   no alpha overflows); the estimate is the most confident candidate. If the best
    candidate's code uses no positive template, first re-detect (*ours*, ``redetect_count``):
    code a wider search around the previous estimate, whose candidates count only where
    eps_pos < ``redetect_accept``. With ``generative_weight`` > 0 (*ours*, the default; 0
@@ -31,7 +30,6 @@ import contextlib
 import threading
 from dataclasses import dataclass
 
-import cv2
 import numpy as np
 
 from nrmlc.data.image import as_gray_frame
@@ -40,18 +38,68 @@ from nrmlc.geometry import (MIN_BOX_SIZE, as_box, box_to_state, clamp_states, cl
                             state_to_box, usable_boxes)
 from nrmlc.kernels.coding import code_candidates
 from nrmlc.kernels.distance import candidate_template_dots, template_gram
-from nrmlc.kernels.warp import centre_patches, warp_patches
+from nrmlc.kernels.warp import warp_patches
 from nrmlc.tracker.generative import LocalHistogramModel
 from nrmlc.tracker.params import TrackerParams
 from nrmlc.tracker.redetect import REDETECT_TRIGGER, needs_search, search
 from nrmlc.tracker.templates import (SCM_PUSH_INIT, SCM_PUSH_UPDATE, negative_states, positive_states,
                                      scm_negative_states, scm_positive_states)
 
-#: ``prefilter`` skips blurs narrower than this (image px): such a Gaussian gives the
-#: neighbouring pixels a weight of about exp(-200), i.e. it changes nothing.
-MIN_BLUR_SIGMA = 0.05
-#: OpenCV reads a sigma of 0 as "derive it from the kernel size": the other axis's floor.
-BLUR_SIGMA_FLOOR = 1e-3
+@dataclass(frozen=True)
+class Coding:
+    """Algorithm 1 on n candidates, and their confidence (what :meth:`NRMLCTracker.encode` gives).
+
+    Attributes
+    ----------
+    patches : (n, patch_size**2) float32
+        The candidates' unit-norm patch vectors y.
+    dots : (n, n_templates) float64
+        y . t for every template t of [T_pos, T_neg].
+    neighbours : (n, k_max) int64
+        Each candidate's k_max nearest templates (indices into [T_pos, T_neg]), nearest first;
+        the first k_j of them are the local dictionary B^j.
+    coefficients : (n, m, k_max) float64
+        The code c^j on each of the m dictionaries (zero beyond k_j).
+    weights : (n, m) float64
+        The dictionary weights w.
+    codes : (n, k_max) float64
+        The output code d = sum_j w_j c^j on ``neighbours``.
+    error_positive, error_negative : (n,) float64
+        eps_pos and eps_neg: the squared error of y against the positive / negative part of d.
+    log_confidence : (n,) float64
+        log h (with the generative term when it is on; -inf where a re-detection candidate
+        is refused).
+    similarity : (n,) float64 or None
+        The generative term's similarity (None when the term is off).
+    """
+
+    patches: np.ndarray
+    dots: np.ndarray
+    neighbours: np.ndarray
+    coefficients: np.ndarray
+    weights: np.ndarray
+    codes: np.ndarray
+    error_positive: np.ndarray
+    error_negative: np.ndarray
+    log_confidence: np.ndarray
+    similarity: np.ndarray | None = None
+
+    def __len__(self) -> int:
+        return len(self.log_confidence)
+
+    def joined(self, other: "Coding") -> "Coding":
+        """This coding with ``other``'s candidates appended."""
+        def join(a, b):
+            return None if a is None or b is None else np.concatenate([a, b])
+        return Coding(**{f: join(getattr(self, f), getattr(other, f)) for f in self.__dataclass_fields__})
+
+
+def negative_shares(coding: Coding, dictionary_sizes) -> tuple[float, float]:
+    """(share of negative entries among all candidates' c, within each k_j; share among their w):
+    the non-negativity diagnostics of the ablation table and ``stats_nonnegativity``."""
+    sizes = np.asarray(dictionary_sizes)
+    within = np.arange(coding.coefficients.shape[2])[None, :] < sizes[:, None]  # (m, k_max)
+    return float(np.mean(coding.coefficients[:, within] < 0)), float(np.mean(coding.weights < 0))
 
 
 @dataclass
@@ -82,8 +130,6 @@ class FrameResult:
         LEN(neg*) > occlusion_max_negative.
     code_sum_positive, code_sum_negative : float
         Sums of the best candidate's codes on positive / negative templates.
-    negative_share_c, negative_share_w : float
-        Share of negative entries among all candidates' c (within each k_j) and w.
     updated_positive : bool
         Whether this frame's result was added to the positive templates.
     redetect_searched, redetected : bool
@@ -107,8 +153,6 @@ class FrameResult:
     occluded: bool
     code_sum_positive: float
     code_sum_negative: float
-    negative_share_c: float
-    negative_share_w: float
     updated_positive: bool = False
     redetect_searched: bool = False
     redetected: bool = False
@@ -154,8 +198,19 @@ class NRMLCTracker:
         self.frame_index = -1
         self.state: np.ndarray | None = None
         self.last: FrameResult | None = None
-        self.last_candidates: dict | None = None
+        #: The last frame's :class:`Coding` of every candidate (set in ``update`` for observers
+        #: such as experiments/internals.py; the algorithm never reads it).
+        self.last_coding: Coding | None = None
         self.generative: LocalHistogramModel | None = None
+        self.frame_shape: tuple | None = None
+        self.initial_box: np.ndarray | None = None
+        self.particles: np.ndarray | None = None
+        self.log_weights: np.ndarray | None = None
+        self.positive_templates: np.ndarray | None = None
+        self.negative_templates: np.ndarray | None = None
+        self.templates: np.ndarray | None = None
+        self.template_gram: np.ndarray | None = None
+        self.template_sq_norms: np.ndarray | None = None
         self._busy = threading.Lock()
 
     def __getstate__(self) -> dict:
@@ -182,12 +237,8 @@ class NRMLCTracker:
     # -- templates -------------------------------------------------------
     def patches(self, frame: np.ndarray, states: np.ndarray) -> np.ndarray:
         """The patch vectors the tracker codes for ``states`` (n, 6) in ``frame`` (a frame
-        as ``update`` sees it after :meth:`prefilter`): (n, patch_size**2) float32, unit rows
-        (mean-free first under ``patch_normalization='centred'``)."""
-        patches = warp_patches(frame, np.ascontiguousarray(state_to_affine(states)), self.params.patch_size)
-        if self.params.patch_normalization == "centred":
-            patches = centre_patches(patches)
-        return patches
+        as ``update`` sees it): (n, patch_size**2) float32, unit rows."""
+        return warp_patches(frame, np.ascontiguousarray(state_to_affine(states)), self.params.patch_size)
 
     def _set_templates(self, positives: np.ndarray, negatives: np.ndarray,
                        kept_positives: np.ndarray | None = None) -> None:
@@ -202,10 +253,6 @@ class NRMLCTracker:
             kept = np.concatenate([kept_positives, np.full(len(negatives), -1, dtype=np.int64)])
             self.template_gram = template_gram(self.templates, self.template_gram, kept)
         self.template_sq_norms = np.ascontiguousarray(np.diag(self.template_gram))
-        if self.params.dictionaries == "per_class":
-            n_pos = len(positives)
-            self.positive_gram = np.ascontiguousarray(self.template_gram[:n_pos, :n_pos])
-            self.negative_gram = np.ascontiguousarray(self.template_gram[n_pos:, n_pos:])
 
     def _sample_positives(self, frame: np.ndarray, state: np.ndarray) -> np.ndarray:
         p = self.params
@@ -240,11 +287,8 @@ class NRMLCTracker:
         self.frame_shape = frame.shape
         self.state = box_to_state(box, p.patch_size)
         self.initial_box = box
-        self.initial_log_size = float(np.log(self.state[2]) + 0.5 * np.log(self.state[4]))
         self.particles = None
         self.log_weights = None
-        self.velocity = np.zeros(2)
-        frame = self.prefilter(frame)
         positives = self._sample_positives(frame, self.state)
         self._set_templates(positives, self._sample_negatives(frame, self.state, first=True))
         self.generative = None
@@ -275,14 +319,15 @@ class NRMLCTracker:
             raise ParameterError(f"frame is {frame.shape[1]}x{frame.shape[0]} but init() saw "
                                  f"{self.frame_shape[1]}x{self.frame_shape[0]}")
         self.frame_index += 1
-        frame = self.prefilter(frame)
-        result = self.step(frame)
+        result, coding, best = self.step(frame)
+        best_patch = coding.patches[best][None, :]
         if (self.frame_index + 1) % self.params.update_interval == 0:
-            self._update_templates(frame, result)
+            self._update_templates(frame, result, best_patch)
         if self.generative is not None and (self.frame_index + 1) % self.params.generative_interval == 0:
             # Coded again alone: keeping every candidate's local codes cost more than this.
-            best = self.generative.similarity(self.last_candidates["patches"][self.last_candidates["best"]][None])
-            self.generative.update(best["neighbours"][0], best["codes"][0], float(best["occluded_share"][0]))
+            local = self.generative.similarity(best_patch)
+            self.generative.update(local["neighbours"][0], local["codes"][0], float(local["occluded_share"][0]))
+        self.last_coding = coding
         return result.box
 
     def move_to(self, box) -> None:
@@ -299,34 +344,8 @@ class NRMLCTracker:
         self.state = box_to_state(box, self.params.patch_size)
         self.particles = None
         self.log_weights = None
-        self.velocity = np.zeros(2)
 
     # -- one frame -------------------------------------------------------
-    def prefilter(self, frame: np.ndarray) -> np.ndarray:
-        """The frame blurred for sampling 32x32 patches of a target of the current
-        estimate's size (``antialias``); unchanged when ``antialias`` is 0.
-
-        A target w px wide is sampled every w/32 px; without a low-pass filter first, a
-        sub-pixel shift changes the aliased patch, so the likelihood is rough in the
-        state. The blur's std is ``antialias * (step - 1)`` per axis, with step the
-        template pixel in image pixels (skimage's anti-aliasing rule at 0.5).
-
-        Returns
-        -------
-        frame : (height, width) float32
-        """
-        factor = self.params.antialias
-        if not factor:
-            return frame
-        step_x = self.state[2]
-        step_y = self.state[2] * self.state[4]
-        sigma_x, sigma_y = factor * max(step_x - 1.0, 0.0), factor * max(step_y - 1.0, 0.0)
-        if sigma_x < MIN_BLUR_SIGMA and sigma_y < MIN_BLUR_SIGMA:
-            return frame
-        return cv2.GaussianBlur(frame, (0, 0), sigmaX=max(sigma_x, BLUR_SIGMA_FLOOR),
-                                sigmaY=max(sigma_y, BLUR_SIGMA_FLOOR),
-                                borderType=cv2.BORDER_REPLICATE)
-
     def sample_particles(self) -> np.ndarray:
         """(n_particles, 6) states for this frame: last frame's particles resampled by
         confidence (condensation) or the estimate repeated, then diffused and clamped."""
@@ -340,22 +359,18 @@ class NRMLCTracker:
             states = self.particles[np.minimum(picks, len(self.particles) - 1)]
         else:
             states = np.tile(self.state, (n, 1))
-        if p.velocity_damping:
-            # The motion model's mean mu (eq. 1): the last frame's displacement, damped.
-            states[:, 0:2] += p.velocity_damping * self.velocity
-        return self._diffuse(states, int(round(p.wide_share * n)), p.wide_factor)
+        return self.diffuse(states)
 
-    def _diffuse(self, states: np.ndarray, n_wide: int, wide_factor: float) -> np.ndarray:
+    def diffuse(self, states: np.ndarray, translation_factor: float = 1.0) -> np.ndarray:
         """Add the motion model's noise to ``states`` (n, 6) in place, with the translation
-        noise of the last ``n_wide`` rows ``wide_factor`` times larger; clamp them."""
+        noise ``translation_factor`` times larger (re-detection); clamp them."""
         p = self.params
-        n = len(states)
-        noise = self.rng.standard_normal((n, 6)) * np.asarray(p.motion_sigmas)
+        noise = self.rng.standard_normal((len(states), 6)) * np.asarray(p.motion_sigmas)
         if p.translation_noise == "relative":
             size = states[:, 2] * np.sqrt(0.5 * (1.0 + states[:, 4] ** 2))
             noise[:, 0:2] *= size[:, None]
-        if n_wide:
-            noise[n - n_wide:, 0:2] *= wide_factor
+        if translation_factor != 1.0:
+            noise[:, 0:2] *= translation_factor
         states[:, 0:2] += noise[:, 0:2]
         states[:, 2] *= np.exp(noise[:, 2])
         states[:, 3] += noise[:, 3]
@@ -363,8 +378,8 @@ class NRMLCTracker:
         states[:, 5] += noise[:, 5]
         return clamp_states(states, self.frame_shape, MIN_BOX_SIZE, p.patch_size)
 
-    def encode(self, candidates: np.ndarray) -> dict:
-        """Code candidate vectors on the current templates (Algorithm 1 for each).
+    def encode(self, candidates: np.ndarray) -> Coding:
+        """Code candidate vectors on the current templates (Algorithm 1 for each) and score them.
 
         Parameters
         ----------
@@ -372,153 +387,99 @@ class NRMLCTracker:
 
         Returns
         -------
-        dict with ``dots (n, n_templates)``, ``neighbours (n, k_max)``,
-        ``coefficients (n, m, k_max)``, ``weights (n, m)``, ``codes (n, k_max)``,
-        ``error_positive (n,)``, ``error_negative (n,)``, ``log_confidence (n,)``; with the
-        generative term also those of :meth:`_generative_similarity`.
+        Coding
         """
         p = self.params
         dots = candidate_template_dots(candidates, self.templates)
-        n_pos = len(self.positive_templates)
-        neighbours, coefficients, weights, codes, error_positive, error_negative = self._code(
-            candidates, dots, self.template_gram, self.template_sq_norms, n_pos)
-        if p.dictionaries == "per_class":
-            # Each class's error from its own local dictionaries: eps_pos never rests on
-            # a dictionary that holds no positive template (eps_pos = |y|^2 = 1).
-            error_positive = self._code(candidates, np.ascontiguousarray(dots[:, :n_pos]),
-                                        self.positive_gram, self.template_sq_norms[:n_pos], n_pos)[4]
-            error_negative = self._code(candidates, np.ascontiguousarray(dots[:, n_pos:]),
-                                        self.negative_gram, self.template_sq_norms[n_pos:], 0)[5]
+        ridge_c, ridge_w = p.ridges
+        coded = code_candidates(candidates, dots, self.template_gram, self.template_sq_norms,
+                                np.asarray(p.dictionary_sizes, dtype=np.int64), len(self.positive_templates),
+                                ridge_c, ridge_w, p.coding == "constrained", p.n_iterations)
+        error_positive, error_negative = coded["error_positive"], coded["error_negative"]
         sign = -1.0 if p.confidence == "corrected" else 1.0
         # log h: the ranking and the condensation weights are taken from it, never from h,
         # so no alpha can overflow into a tie.
         log_confidence = sign * p.alpha * (error_positive - error_negative)
-        extra = {}
+        similarity = None
         if self.generative is not None:
-            extra = self._generative_similarity(candidates, log_confidence)
-            term = p.generative_weight * np.log(np.maximum(extra["similarity"], 1e-300))
+            similarity = self._generative_similarity(candidates, log_confidence)
+            term = p.generative_weight * np.log(np.maximum(similarity, 1e-300))
             # Only where the positives take part in the code: where the discriminative
             # likelihood is flat (the target hidden or lost), the term would hold the cloud
             # on whatever background it prefers instead of letting it spread and search.
             recognised = error_positive < REDETECT_TRIGGER
             floor = term[recognised].min() if recognised.any() else 0.0
             log_confidence = log_confidence + np.where(recognised, term, floor)
-        return dict(dots=dots, neighbours=neighbours, coefficients=coefficients, weights=weights, codes=codes,
-                    error_positive=error_positive, error_negative=error_negative, log_confidence=log_confidence,
-                    **extra)
+        return Coding(patches=candidates, dots=dots, neighbours=coded["neighbours"],
+                      coefficients=coded["coefficients"], weights=coded["weights"], codes=coded["codes"],
+                      error_positive=error_positive, error_negative=error_negative,
+                      log_confidence=log_confidence, similarity=similarity)
 
-    def _generative_similarity(self, candidates: np.ndarray, log_confidence: np.ndarray) -> dict:
-        """The generative term's ``similarity`` (n,) of each candidate: the
-        ``generative_candidates`` most confident are coded locally, the others get the
-        lowest of their similarities."""
+    def _generative_similarity(self, candidates: np.ndarray, log_confidence: np.ndarray) -> np.ndarray:
+        """The generative term's similarity (n,) of each candidate: the ``generative_candidates``
+        most confident are coded locally, the others get the lowest of their similarities."""
         top = np.argsort(-log_confidence, kind="stable")[:self.params.generative_candidates]
         local = self.generative.similarity(candidates[top])["similarity"]
         similarity = np.full(len(candidates), local.min())
         similarity[top] = local
-        return dict(similarity=similarity)
+        return similarity
 
-    def _code(self, candidates, dots, gram, template_sq_norms, n_positive) -> tuple:
-        """Algorithm 1 on the k_max nearest of the given templates, one parallel pass
-        (:func:`nrmlc.kernels.coding.code_candidates`): (neighbours, coefficients, weights,
-        codes, error_positive, error_negative), as in :meth:`encode`."""
-        p = self.params
-        ridge_c, ridge_w = p.ridges
-        coded = code_candidates(candidates, dots, gram, template_sq_norms,
-                                np.asarray(p.dictionary_sizes, dtype=np.int64), n_positive,
-                                ridge_c, ridge_w, p.coding == "constrained", p.n_iterations)
-        return tuple(coded[name] for name in ("neighbours", "coefficients", "weights", "codes",
-                                               "error_positive", "error_negative"))
+    def step(self, frame: np.ndarray) -> tuple[FrameResult, Coding, int]:
+        """Estimate the target in ``frame`` (Algorithm 2, steps 2.1-2.4; no template update).
 
-    def step(self, frame: np.ndarray) -> FrameResult:
-        """Estimate the target in ``frame`` (no template update)."""
+        Returns
+        -------
+        result : FrameResult
+        coding : Coding
+            Every candidate of the frame (the particles, then any re-detection candidates).
+        best : int
+            The row of ``coding`` that is the estimate.
+        """
         p = self.params
         states = self.sample_particles()
-        candidates = self.patches(frame, states)
-        coded = self.encode(candidates)
-        self._add_scale_prior(coded, states)
+        coding = self.encode(self.patches(frame, states))
         n_local = len(states)
-        best = int(np.argmax(coded["log_confidence"]))
-        searched = needs_search(p, coded["error_positive"][best])
+        best = int(np.argmax(coding.log_confidence))
+        searched = needs_search(p, coding.error_positive[best])
         if searched:
-            states, candidates, coded = search(self, frame, states, candidates, coded)
-            best = int(np.argmax(coded["log_confidence"]))
-        log_confidence = coded["log_confidence"]
+            states, coding = search(self, frame, states, coding)
+            best = int(np.argmax(coding.log_confidence))
+        log_confidence = coding.log_confidence
         self.particles = states
         self.log_weights = log_confidence
         n_pos = len(self.positive_templates)
-        indices = coded["neighbours"][best]
-        codes = coded["codes"][best]
+        indices = coding.neighbours[best]
+        codes = coding.codes[best]
         negative = indices >= n_pos
         n_negative_used = int(np.count_nonzero(np.abs(codes[negative]) > p.coefficient_tolerance))
-        sizes = np.asarray(p.dictionary_sizes)
-        within = np.arange(p.k_max)[None, :] < sizes[:, None]  # (m, k_max): entries of each c^j
-        coefficient_values = coded["coefficients"][:, within]
-        previous = self.state
-        self.state = self._estimate(states, log_confidence, best)
-        self.velocity = self.state[:2] - previous[:2]
+        self.state = states[best].copy()
         result = FrameResult(
             state=self.state.copy(), box=state_to_box(self.state, p.patch_size),
             confidence=_exp_or_inf(log_confidence[best]), log_confidence=float(log_confidence[best]),
-            error_positive=float(coded["error_positive"][best]), error_negative=float(coded["error_negative"][best]),
-            template_indices=indices.copy(), codes=codes.copy(), coefficients=coded["coefficients"][best].copy(),
-            weights=coded["weights"][best].copy(), n_positive_templates=n_pos, n_templates=len(self.templates),
+            error_positive=float(coding.error_positive[best]), error_negative=float(coding.error_negative[best]),
+            template_indices=indices.copy(), codes=codes.copy(), coefficients=coding.coefficients[best].copy(),
+            weights=coding.weights[best].copy(), n_positive_templates=n_pos, n_templates=len(self.templates),
             n_negative_used=n_negative_used, occluded=n_negative_used > p.occlusion_max_negative,
             code_sum_positive=float(codes[~negative].sum()), code_sum_negative=float(codes[negative].sum()),
-            negative_share_c=float(np.mean(coefficient_values < 0)),
-            negative_share_w=float(np.mean(coded["weights"] < 0)),
             redetect_searched=bool(searched), redetected=best >= n_local,
         )
         self.last = result
-        self.last_candidates = dict(coded, states=states, patches=candidates, best=best)
-        return result
+        return result, coding, best
 
-    def _add_scale_prior(self, coded: dict, states: np.ndarray) -> None:
-        """Add the scale prior (``scale_prior``) to ``coded['log_confidence']`` in place:
-        a Gaussian in the log of the size (geometric mean of width and height) about the
-        initial box's size."""
-        sigma = self.params.scale_prior
-        if not sigma:
-            return
-        log_size = np.log(states[:, 2]) + 0.5 * np.log(states[:, 4])
-        coded["log_confidence"] = coded["log_confidence"] - 0.5 * ((log_size - self.initial_log_size) / sigma) ** 2
-
-    def _estimate(self, states: np.ndarray, log_confidence: np.ndarray, best: int) -> np.ndarray:
-        """(6,) estimate: the most confident particle, or the confidence-weighted mean of
-        the ``estimate_count`` most confident (scale and aspect averaged in the log)."""
-        count = self.params.estimate_count
-        if count == 1:
-            return states[best].copy()
-        # A stable sort keeps ties in particle order, so the estimate is seed-determined.
-        top = np.argsort(-log_confidence, kind="stable")[:count]
-        weights = np.exp(log_confidence[top] - log_confidence[best])
-        weights /= weights.sum()
-        chosen = states[top].copy()
-        chosen[:, 2] = np.log(chosen[:, 2])
-        chosen[:, 4] = np.log(chosen[:, 4])
-        state = weights @ chosen
-        state[2] = np.exp(state[2])
-        state[4] = np.exp(state[4])
-        return state
-
-    def _update_templates(self, frame: np.ndarray, result: FrameResult) -> None:
-        """Algorithm 2, step 2.5: negatives always; positives unless occluded."""
+    def _update_templates(self, frame: np.ndarray, result: FrameResult, new: np.ndarray) -> None:
+        """Algorithm 2, step 2.5: negatives always; positives (``new``, the estimate's (1, d)
+        patch) unless occluded."""
         p = self.params
         negatives = self._sample_negatives(frame, self.state)
         positives = self.positive_templates
         kept = np.arange(len(positives), dtype=np.int64)
         blocked = p.occlusion_detection and result.occluded
         if not blocked and result.error_positive < p.update_error_threshold:
-            if p.estimate_count == 1:
-                new = self.last_candidates["patches"][self.last_candidates["best"]][None, :]
-            else:
-                new = self.patches(frame, self.state[None, :])
             if len(positives) < p.max_positive:
                 positives = np.vstack([positives, new])
                 kept = np.append(kept, -1)
             else:
-                # The first frame's templates are the first n_positive rows.
-                first = p.n_positive if p.keep_initial_positives and p.max_positive > p.n_positive else 0
-                closest = first + int(np.argmin(((positives[first:] - new) ** 2).sum(axis=1)))
+                closest = int(np.argmin(((positives - new) ** 2).sum(axis=1)))
                 positives = positives.copy()
                 positives[closest] = new[0]
                 kept[closest] = -1

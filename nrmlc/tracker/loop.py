@@ -8,7 +8,7 @@ import numpy as np
 
 from nrmlc.errors import ParameterError
 from nrmlc.geometry import usable_boxes
-from nrmlc.tracker.algorithm import FrameResult, NRMLCTracker
+from nrmlc.tracker.algorithm import FrameResult, NRMLCTracker, negative_shares as coding_negative_shares
 from nrmlc.tracker.params import TrackerParams
 
 #: FrameResult fields stored per frame in a TrackResult (frame 0 gets NaN / 0).
@@ -67,7 +67,7 @@ def _stack(results: list[FrameResult], name: str) -> np.ndarray:
 
 def track_sequence(sequence, params: TrackerParams | None = None, seed: int = 0, n_frames: int | None = None,
                    init_box=None, progress: bool = False, on_frame=None, recentre_boxes=None,
-                   recentre_every: int = 0) -> TrackResult:
+                   recentre_every: int = 0, negative_shares: bool = False) -> TrackResult:
     """Track ``sequence`` from its first frame.
 
     Parameters
@@ -90,6 +90,10 @@ def track_sequence(sequence, params: TrackerParams | None = None, seed: int = 0,
         truth this measures localisation from a perfect start.
     recentre_every : int
         0 (never) or the re-centring period in frames.
+    negative_shares : bool
+        Also record, per frame, the shares of negative entries among all candidates' c and w
+        (diagnostics ``negative_share_c``, ``negative_share_w``;
+        :func:`nrmlc.tracker.algorithm.negative_shares`), for the reports that show them.
 
     Returns
     -------
@@ -118,7 +122,7 @@ def track_sequence(sequence, params: TrackerParams | None = None, seed: int = 0,
         bar = tqdm(total=total, desc=f"{sequence.name}", unit="frame", leave=False, disable=None)
     start = time.perf_counter()
     tracking = 0.0
-    boxes, states, results = [], [], [None]
+    boxes, states, results, shares = [], [], [None], [(np.nan, np.nan)]
     for index in range(total):
         frame = next(frames)
         tick = time.perf_counter()
@@ -130,6 +134,8 @@ def track_sequence(sequence, params: TrackerParams | None = None, seed: int = 0,
             boxes.append(tracker.update(frame))
             states.append(tracker.state.copy())
             results.append(tracker.last)
+            if negative_shares:
+                shares.append(coding_negative_shares(tracker.last_coding, tracker.params.dictionary_sizes))
             if recentre_every and index % recentre_every == 0 and index < len(usable) and usable[index]:
                 tracker.move_to(recentre_boxes[index])
         tracking += time.perf_counter() - tick
@@ -144,4 +150,7 @@ def track_sequence(sequence, params: TrackerParams | None = None, seed: int = 0,
     if len(results) > 1:
         results[0] = results[1]  # template for the frame-0 filler row
         diagnostics = {name: _stack(results, name) for name in DIAGNOSTIC_FIELDS}
+        if negative_shares:
+            shares = np.array(shares, dtype=np.float64)
+            diagnostics.update(negative_share_c=shares[:, 0], negative_share_w=shares[:, 1])
     return TrackResult(np.array(boxes), np.array(states), diagnostics, tracking, total_seconds)

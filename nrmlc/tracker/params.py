@@ -1,23 +1,24 @@
-"""Tracker parameters: one dataclass, the paper's defaults, validated on construction."""
+"""Tracker parameters: one dataclass, the paper's defaults, validated on construction.
+
+Each field declares its kind by its annotation (``int``, ``float``, ``bool``, ``tuple`` or a
+``Literal`` of its choices) and its range beside its default (:func:`bounded`); one generic
+loop in ``__post_init__`` coerces and checks them all. Only the checks that tie fields together
+(radii ordering, k against the template count, memory) are written out.
+"""
 from __future__ import annotations
 
 import dataclasses
+import functools
 import math
+import typing
 from dataclasses import dataclass
+from typing import Literal
 
 import numpy as np
 
 from nrmlc.config import PATCH_SIZE
 from nrmlc.errors import ParameterError
 from nrmlc.tracker.generative import LOCAL_SIZE, N_ATOMS
-
-CODING_MODES = ("regularized", "constrained", "plain")
-CONFIDENCE_FORMS = ("corrected", "literal")
-TEMPLATE_SAMPLINGS = ("scm", "annulus")
-PROPAGATIONS = ("condensation", "best")
-TRANSLATION_NOISES = ("pixels", "relative")
-PATCH_NORMALIZATIONS = ("unit", "centred")
-DICTIONARY_SCOPES = ("joint", "per_class")
 
 #: Largest local dictionary the compiled solvers accept.
 MAX_DICTIONARY_SIZE = 16
@@ -30,6 +31,24 @@ MAX_RADIUS = 1000.0
 #: Per-frame motion std beyond these is not a motion model: 1000 px (or template px), an
 #: e-fold of scale or aspect, pi rad.
 MAX_MOTION_SIGMA = (1000.0, 1000.0, 1.0, math.pi, 1.0, math.pi)
+
+#: Fields that were measured on the development sequences and not adopted, then removed from the
+#: code; passing one is refused with a pointer to the measurements.
+NOT_ADOPTED = ("patch_normalization", "dictionaries", "wide_share", "wide_factor", "estimate_count",
+               "velocity_damping", "antialias", "keep_initial_positives", "scale_prior")
+
+
+def bounded(default, low=None, high=None, *, low_open: bool = False, high_open: bool = False):
+    """A field with ``default`` whose value must lie between ``low`` and ``high`` (None: no bound;
+    ``*_open``: the bound itself is excluded), checked by ``TrackerParams.__post_init__``."""
+    return dataclasses.field(default=default, metadata=dict(low=low, high=high, low_open=low_open,
+                                                            high_open=high_open))
+
+
+def _not_adopted(names) -> ParameterError:
+    names = sorted(names)
+    return ParameterError(f"parameter {', '.join(names)}: measured and not adopted, so removed "
+                          f"(see docs/FINDINGS.md)")
 
 
 @dataclass(frozen=True)
@@ -121,43 +140,11 @@ class TrackerParams:
         particles are resampled in proportion to their confidence h, then diffused by
         the motion model; alpha then sets how peaked the weights are. 'best' draws all
         particles around the previous estimate. Either way the estimate is the most
-        confident particle (unless ``estimate_count`` > 1).
+        confident particle.
     translation_noise : {'pixels', 'relative'}
         'pixels': ``motion_sigmas[0:2]`` are image pixels. 'relative' (L1APG's
         ``draw_sample``): they are template pixels, i.e. multiplied by the target's
         size ``sqrt((w^2 + h^2) / 2) / patch_size``.
-    patch_normalization : {'unit', 'centred'}
-        'unit': patches are scaled to unit l2 norm (the paper). 'centred': the
-        patch mean is subtracted first (L1APG whitens its patches), which removes a
-        uniform brightness change.
-    dictionaries : {'joint', 'per_class'}
-        Where eps_pos and eps_neg come from. 'joint' (the paper): one coding on the
-        k nearest of all templates, eps_pos from its positive part, eps_neg from its
-        negative part. 'per_class' (ours): eps_pos from the coding on the k nearest
-        positive templates, eps_neg from that on the k nearest negatives, each with
-        the paper's multiple local dictionaries and solver; the joint coding still
-        gives the codes, LEN(neg*) and the occlusion test.
-    wide_share, wide_factor : float
-        A share of the particles (*ours*, 0 = off, the paper) whose translation noise is
-        ``wide_factor`` times larger, so that the cloud can reach a fast-moving target.
-    estimate_count : int
-        The estimate is the confidence-weighted mean state of this many most confident
-        particles (*ours*; 1 = the paper: the most confident particle), to damp the
-        frame-to-frame jitter of the arg max. The positive update then adds the
-        estimate's patch; eps_pos* and LEN(neg*) stay those of the most confident.
-    velocity_damping : float
-        The motion model's mean (the mu of Sec. 2's N(mu, sigma^2), which the paper does
-        not give): each particle first moves by this share of the estimate's last
-        displacement (*ours*; 0 = the paper's random walk, 1 = constant velocity).
-    antialias : float
-        Low-pass the frame before sampling patches: a Gaussian of std ``antialias *
-        (step - 1)`` image pixels per axis, where step is the size of a template pixel
-        at the current estimate (*ours*; 0 = off, the paper; 0.5 is skimage's rule).
-    keep_initial_positives : bool
-        When the positive set is full, replace the closest among the templates added
-        later, never one of the first frame's ``n_positive`` (*ours*; False = the paper:
-        the closest of all). The first frame's templates are the only ones known to be
-        the target, so drifted results cannot push them out.
     redetect_count : int
         Re-detection (*ours*; 0 = off, the paper). On a frame whose best candidate's code
         puts no weight on a positive template (eps_pos* = 1: the target looks like nothing
@@ -188,197 +175,107 @@ class TrackerParams:
         codes with a lasso).
     generative_interval : int
         The template histogram is updated every this many frames (SCM's ``demo.m``: 5).
-    scale_prior : float
-        A prior that anchors the scale (*ours*; 0 = off, the paper): log h gains
-        ``-0.5 * (log(size / size_0) / scale_prior)^2``, with size the geometric mean of the
-        box's width and height and size_0 the initial box's. It counters the feedback in which a
-        box a little smaller than the target is added to the positives, which then prefer the
-        smaller box (docs/FINDINGS.md, "Scale drift follows the likelihood").
     generative_step : int
         The candidates' local patches are cut every this many px (SCM's ``demo.m``: 2,
         196 patches of a 32x32 patch). *Ours*: 4, 49 patches (round 14). The atoms always
         come from the 2-px grid.
     """
 
-    n_particles: int = 450
-    motion_sigmas: tuple = (2.0, 2.0, 0.01, 0.0, 0.005, 0.0)
-    n_positive: int = 50
-    n_negative: int = 150
+    # -- motion model and particles (Sec. 2, eq. 1) -------------------------------------
+    n_particles: int = bounded(450, 1, MAX_PARTICLES)
+    motion_sigmas: tuple[float, ...] = (2.0, 2.0, 0.01, 0.0, 0.005, 0.0)
+    propagation: Literal["condensation", "best"] = "condensation"
+    translation_noise: Literal["relative", "pixels"] = "relative"
+
+    # -- templates (Sec. 3) ---------------------------------------------------------------
+    n_positive: int = bounded(50, 1)
+    n_negative: int = bounded(150, 0)
+    template_sampling: Literal["scm", "annulus"] = "scm"
     positive_radius: float = 2.0
     negative_radius: float = 16.0
-    dictionary_sizes: tuple = (5, 8, 10)
-    coding: str = "regularized"
-    lam: float = 1.0
-    beta: float = 0.1
-    n_iterations: int = 3
-    alpha: float = 25.0
-    confidence: str = "corrected"
-    update_interval: int = 5
+    positive_sigma: float = bounded(1.0, 0, MAX_RADIUS)
+    negative_push: float = bounded(0.25, 0, 2)
+    patch_size: int = bounded(PATCH_SIZE, 4)
+
+    # -- coding (Algorithm 1) -------------------------------------------------------------
+    dictionary_sizes: tuple[int, ...] = (5, 8, 10)
+    coding: Literal["regularized", "constrained", "plain"] = "regularized"
+    lam: float = bounded(1.0, 0)
+    beta: float = bounded(0.1, 0)
+    n_iterations: int = bounded(3, 0)
+
+    # -- confidence (Algorithm 2, step 2.4) -----------------------------------------------
+    alpha: float = bounded(25.0, 0, low_open=True)
+    confidence: Literal["corrected", "literal"] = "corrected"
+
+    # -- template updates and occlusion (Algorithm 2, step 2.5) ---------------------------
+    update_interval: int = bounded(5, 1)
     max_positive: int = 100
     update_error_threshold: float = 0.1
     occlusion_detection: bool = True
     occlusion_max_negative: int = 2
-    coefficient_tolerance: float = 1e-6
-    patch_size: int = PATCH_SIZE
-    template_sampling: str = "scm"
-    positive_sigma: float = 1.0
-    negative_push: float = 0.25
-    propagation: str = "condensation"
-    translation_noise: str = "relative"
-    patch_normalization: str = "unit"
-    dictionaries: str = "joint"
-    wide_share: float = 0.0
-    wide_factor: float = 4.0
-    estimate_count: int = 1
-    velocity_damping: float = 0.0
-    antialias: float = 0.0
-    keep_initial_positives: bool = False
-    redetect_count: int = 300
-    redetect_factor: float = 4.0
-    redetect_accept: float = 0.3
-    generative_weight: float = 10.0
-    generative_candidates: int = 20
-    generative_neighbours: int = 5
-    generative_lam: float = 1.0
-    generative_interval: int = 5
-    generative_step: int = 4
-    scale_prior: float = 0.0
+    coefficient_tolerance: float = bounded(1e-6, 0)
+
+    # -- re-detection (ours; nrmlc.tracker.redetect) --------------------------------------
+    redetect_count: int = bounded(300, 0, MAX_PARTICLES)
+    redetect_factor: float = bounded(4.0, 1, 100)
+    redetect_accept: float = bounded(0.3, 0, 1, low_open=True)
+
+    # -- generative term (ours, after SCM; nrmlc.tracker.generative) ----------------------
+    generative_weight: float = bounded(10.0, 0, 1000)
+    generative_candidates: int = bounded(20, 1, MAX_PARTICLES)
+    generative_neighbours: int = bounded(5, 1, N_ATOMS)
+    generative_lam: float = bounded(1.0, 0, 1000, low_open=True)
+    generative_interval: int = bounded(5, 1)
+    generative_step: int = bounded(4, 1, LOCAL_SIZE)
 
     def __post_init__(self) -> None:
-        def fail(name: str, message: str) -> None:
-            raise ParameterError(f"parameter {name}: {message}")
+        kinds = _kinds()
+        for f in dataclasses.fields(self):
+            object.__setattr__(self, f.name, _coerce(f, kinds[f.name], getattr(self, f.name)))
+        self._check_together()
+        self._check_memory(_fail)
 
-        # Normalise sequences to tuples so params stay hashable and comparable; numpy scalars
-        # become the Python numbers they equal (so that they give the same cache keys), and a
-        # float where an integer is needed is refused, never truncated.
-        for name, integral in (("motion_sigmas", False), ("dictionary_sizes", True)):
-            values = getattr(self, name)
-            if isinstance(values, (str, bytes, dict)) or not hasattr(values, "__iter__"):
-                fail(name, f"must be a sequence of numbers, got {values!r}")
-            values = tuple(values)
-            kinds = (int, np.integer) if integral else (int, float, np.integer, np.floating)
-            if any(isinstance(v, (bool, np.bool_)) or not isinstance(v, kinds) for v in values):
-                fail(name, f"must be a sequence of {'integers' if integral else 'numbers'}, got {values!r}")
-            object.__setattr__(self, name, tuple(int(v) if integral else float(v) for v in values))
-        for name in ("occlusion_detection", "keep_initial_positives"):
-            value = getattr(self, name)
-            if isinstance(value, np.bool_):
-                object.__setattr__(self, name, value := bool(value))
-            if not isinstance(value, bool):
-                fail(name, f"must be True or False, got {value!r}")
-        for name in ("n_particles", "n_positive", "n_negative", "n_iterations", "update_interval",
-                     "max_positive", "occlusion_max_negative", "patch_size", "estimate_count", "redetect_count",
-                     "generative_candidates", "generative_neighbours", "generative_interval", "generative_step"):
-            value = getattr(self, name)
-            if isinstance(value, np.integer):
-                object.__setattr__(self, name, value := int(value))
-            if isinstance(value, bool) or not isinstance(value, int):
-                fail(name, f"must be an integer, got {value!r}")
-        for name in ("positive_radius", "negative_radius", "lam", "beta", "alpha", "update_error_threshold",
-                     "coefficient_tolerance", "positive_sigma", "negative_push", "wide_share", "wide_factor",
-                     "velocity_damping", "antialias", "redetect_factor", "redetect_accept", "generative_weight",
-                     "generative_lam", "scale_prior"):
-            value = getattr(self, name)
-            if isinstance(value, (np.integer, np.floating)) and not isinstance(value, np.bool_):
-                object.__setattr__(self, name, value := value.item())
-            if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
-                fail(name, f"must be a finite number, got {value!r}")
-        # Limits that refuse, before any work, values that would exhaust memory or overflow.
-        if not 1 <= self.n_particles <= MAX_PARTICLES:
-            fail("n_particles", f"must be in 1..{MAX_PARTICLES}, got {self.n_particles}")
+    @classmethod
+    def choices(cls, name: str) -> tuple:
+        """The values a switch can take: a ``Literal`` field's choices (default first), or
+        (True, False) for a flag; () for a numeric field."""
+        kind = _kinds().get(name)
+        if kind is None:
+            raise ParameterError(f"unknown parameter {name!r}" + _did_you_mean(name))
+        if kind is bool:
+            return (True, False)
+        return typing.get_args(kind) if typing.get_origin(kind) is Literal else ()
+
+    def _check_together(self) -> None:
+        """The checks that tie fields together, or are not a plain range."""
         if len(self.motion_sigmas) != 6 or any(not math.isfinite(v) or v < 0 for v in self.motion_sigmas):
-            fail("motion_sigmas", f"must be 6 finite non-negative numbers, got {self.motion_sigmas}")
+            _fail("motion_sigmas", f"must be 6 finite non-negative numbers, got {self.motion_sigmas}")
         if any(v > MAX_MOTION_SIGMA[i] for i, v in enumerate(self.motion_sigmas)):
-            fail("motion_sigmas", f"each must be at most {MAX_MOTION_SIGMA} (translation px or template px, "
-                                  f"log scale, rad, log aspect, rad), got {self.motion_sigmas}")
-        if self.n_positive < 1:
-            fail("n_positive", f"must be >= 1, got {self.n_positive}")
-        if self.n_negative < 0:
-            fail("n_negative", f"must be >= 0, got {self.n_negative}")
+            _fail("motion_sigmas", f"each must be at most {MAX_MOTION_SIGMA} (translation px or template px, "
+                                   f"log scale, rad, log aspect, rad), got {self.motion_sigmas}")
         if self.max_positive + self.n_negative > MAX_TEMPLATES:
-            fail("n_negative" if self.n_negative > self.max_positive else "max_positive",
-                 f"max_positive + n_negative must be at most {MAX_TEMPLATES} (the template Gram is "
-                 f"their square), got {self.max_positive} + {self.n_negative}")
+            _fail("n_negative" if self.n_negative > self.max_positive else "max_positive",
+                  f"max_positive + n_negative must be at most {MAX_TEMPLATES} (the template Gram is "
+                  f"their square), got {self.max_positive} + {self.n_negative}")
         if not 0 <= self.positive_radius < self.negative_radius:
-            fail("negative_radius", f"need 0 <= positive_radius < negative_radius, got "
-                                    f"{self.positive_radius} and {self.negative_radius}")
+            _fail("negative_radius", f"need 0 <= positive_radius < negative_radius, got "
+                                     f"{self.positive_radius} and {self.negative_radius}")
         if self.negative_radius > MAX_RADIUS:
-            fail("negative_radius", f"must be at most {MAX_RADIUS:g} template pixels, got {self.negative_radius}")
+            _fail("negative_radius", f"must be at most {MAX_RADIUS:g} template pixels, got {self.negative_radius}")
         if not self.dictionary_sizes:
-            fail("dictionary_sizes", "needs at least one dictionary size")
+            _fail("dictionary_sizes", "needs at least one dictionary size")
         n_templates = self.n_positive + self.n_negative
         for k in self.dictionary_sizes:
             if k < 1 or k > MAX_DICTIONARY_SIZE:
-                fail("dictionary_sizes", f"each k must be in 1..{MAX_DICTIONARY_SIZE}, got {k}")
+                _fail("dictionary_sizes", f"each k must be in 1..{MAX_DICTIONARY_SIZE}, got {k}")
             if k > n_templates:
-                fail("dictionary_sizes", f"k = {k} is larger than the template count {n_templates}")
-        for name, choices in (("template_sampling", TEMPLATE_SAMPLINGS), ("propagation", PROPAGATIONS),
-                              ("translation_noise", TRANSLATION_NOISES),
-                              ("patch_normalization", PATCH_NORMALIZATIONS), ("dictionaries", DICTIONARY_SCOPES)):
-            if getattr(self, name) not in choices:
-                fail(name, f"unknown value {getattr(self, name)!r}; choose one of {', '.join(choices)}")
-        if not 0 <= self.wide_share <= 1:
-            fail("wide_share", f"must be in [0, 1], got {self.wide_share}")
-        if not 1 <= self.wide_factor <= 100:
-            fail("wide_factor", f"must be in [1, 100], got {self.wide_factor}")
-        if not 0 <= self.redetect_count <= MAX_PARTICLES:
-            fail("redetect_count", f"must be in 0..{MAX_PARTICLES}, got {self.redetect_count}")
-        if not 1 <= self.redetect_factor <= 100:
-            fail("redetect_factor", f"must be in [1, 100], got {self.redetect_factor}")
-        if not 0 < self.redetect_accept <= 1:
-            fail("redetect_accept", f"must be in (0, 1], got {self.redetect_accept}")
-        if not 0 <= self.generative_weight <= 1000:
-            fail("generative_weight", f"must be in [0, 1000], got {self.generative_weight}")
-        if not 1 <= self.generative_candidates <= MAX_PARTICLES:
-            fail("generative_candidates", f"must be in 1..{MAX_PARTICLES}, got {self.generative_candidates}")
-        if not 1 <= self.generative_neighbours <= N_ATOMS:
-            fail("generative_neighbours", f"must be in 1..{N_ATOMS}, got {self.generative_neighbours}")
-        if not 0 < self.generative_lam <= 1000:
-            fail("generative_lam", f"must be in (0, 1000], got {self.generative_lam}")
-        if self.generative_interval < 1:
-            fail("generative_interval", f"must be >= 1, got {self.generative_interval}")
-        if not 1 <= self.generative_step <= LOCAL_SIZE:
-            fail("generative_step", f"must be in 1..{LOCAL_SIZE}, got {self.generative_step}")
-        if not 1 <= self.estimate_count <= self.n_particles:
-            fail("estimate_count", f"must be in 1..n_particles ({self.n_particles}), got {self.estimate_count}")
-        if not 0 <= self.scale_prior <= 100:
-            fail("scale_prior", f"must be in [0, 100] (0: off), got {self.scale_prior}")
-        if not 0 <= self.velocity_damping <= 1:
-            fail("velocity_damping", f"must be in [0, 1], got {self.velocity_damping}")
-        if not 0 <= self.negative_push <= 2:
-            fail("negative_push", f"must be in [0, 2], got {self.negative_push}")
-        if not 0 <= self.antialias <= 4:
-            fail("antialias", f"must be in [0, 4], got {self.antialias}")
-        if not isinstance(self.keep_initial_positives, bool):
-            fail("keep_initial_positives", f"must be True or False, got {self.keep_initial_positives!r}")
-        if not 0 <= self.positive_sigma <= MAX_RADIUS:
-            fail("positive_sigma", f"must be in [0, {MAX_RADIUS:g}], got {self.positive_sigma}")
-        if self.dictionaries == "per_class" and self.k_max > min(self.n_positive, self.n_negative):
-            fail("dictionaries", f"'per_class' needs n_positive and n_negative >= k = {self.k_max}")
-        if self.coding not in CODING_MODES:
-            fail("coding", f"unknown mode {self.coding!r}; choose one of {', '.join(CODING_MODES)}")
-        if self.confidence not in CONFIDENCE_FORMS:
-            fail("confidence", f"unknown form {self.confidence!r}; choose one of {', '.join(CONFIDENCE_FORMS)}")
-        if self.lam < 0:
-            fail("lam", f"must be >= 0, got {self.lam}")
-        if self.beta < 0:
-            fail("beta", f"must be >= 0, got {self.beta}")
-        if self.n_iterations < 0:
-            fail("n_iterations", f"must be >= 0, got {self.n_iterations}")
-        if self.alpha <= 0:
-            fail("alpha", f"must be > 0, got {self.alpha}")
-        if self.update_interval < 1:
-            fail("update_interval", f"must be >= 1, got {self.update_interval}")
+                _fail("dictionary_sizes", f"k = {k} is larger than the template count {n_templates}")
         if self.max_positive < self.n_positive:
-            fail("max_positive", f"must be >= n_positive ({self.n_positive}), got {self.max_positive}")
-        if self.coefficient_tolerance < 0:
-            fail("coefficient_tolerance", f"must be >= 0, got {self.coefficient_tolerance}")
-        if self.patch_size < 4:
-            fail("patch_size", f"must be >= 4, got {self.patch_size}")
+            _fail("max_positive", f"must be >= n_positive ({self.n_positive}), got {self.max_positive}")
         if self.generative_weight > 0 and self.patch_size < LOCAL_SIZE:
-            fail("patch_size", f"must be >= {LOCAL_SIZE} (the local patches) when generative_weight > 0, "
-                               f"got {self.patch_size}")
-        self._check_memory(fail)
+            _fail("patch_size", f"must be >= {LOCAL_SIZE} (the local patches) when generative_weight > 0, "
+                                f"got {self.patch_size}")
 
     def memory_terms(self) -> dict[str, float]:
         """Bytes the largest per-frame arrays take, by the parameters that size them (an estimate
@@ -436,6 +333,8 @@ class TrackerParams:
 
     def replace(self, **changes) -> "TrackerParams":
         """A copy with some fields changed (validated)."""
+        if set(changes) & set(NOT_ADOPTED):
+            raise _not_adopted(set(changes) & set(NOT_ADOPTED))
         unknown = set(changes) - {f.name for f in dataclasses.fields(self)}
         if unknown:
             raise ParameterError(f"unknown parameter(s): {', '.join(sorted(unknown))}"
@@ -467,11 +366,108 @@ class TrackerParams:
 PRESETS: dict[str, dict] = {
     "default": {},
     "paper": dict(template_sampling="annulus", propagation="condensation", alpha=2.5,
-                  patch_normalization="unit", dictionaries="joint", wide_share=0.0,
-                  estimate_count=1, keep_initial_positives=False, velocity_damping=0.0,
-                  antialias=0.0, update_interval=5, update_error_threshold=0.1, redetect_count=0,
+                  update_interval=5, update_error_threshold=0.1, redetect_count=0,
                   generative_weight=0.0, n_particles=600),
 }
+
+
+#: The fields by the part of the algorithm they govern (the sections of the class body).
+SECTIONS: dict[str, tuple[str, ...]] = {
+    "motion": ("n_particles", "motion_sigmas", "propagation", "translation_noise"),
+    "templates": ("n_positive", "n_negative", "template_sampling", "positive_radius", "negative_radius",
+                  "positive_sigma", "negative_push", "patch_size"),
+    "coding": ("dictionary_sizes", "coding", "lam", "beta", "n_iterations"),
+    "confidence": ("alpha", "confidence"),
+    "updates": ("update_interval", "max_positive", "update_error_threshold", "occlusion_detection",
+                "occlusion_max_negative", "coefficient_tolerance"),
+    "redetection": ("redetect_count", "redetect_factor", "redetect_accept"),
+    "generative": ("generative_weight", "generative_candidates", "generative_neighbours", "generative_lam",
+                   "generative_interval", "generative_step"),
+}
+
+_dataclass_init = TrackerParams.__init__
+
+
+@functools.wraps(_dataclass_init)
+def _init(self, *args, **kwargs) -> None:
+    removed = set(kwargs) & set(NOT_ADOPTED)
+    if removed:
+        raise _not_adopted(removed)
+    _dataclass_init(self, *args, **kwargs)
+
+
+TrackerParams.__init__ = _init
+
+
+def _fail(name: str, message: str) -> None:
+    raise ParameterError(f"parameter {name}: {message}")
+
+
+@functools.cache
+def _kinds() -> dict:
+    """Each field's annotation, resolved (``int``, ``float``, ``bool``, ``tuple[...]``, ``Literal[...]``)."""
+    return typing.get_type_hints(TrackerParams)
+
+
+def _coerce(field: dataclasses.Field, kind, value):
+    """``value`` as the plain Python value of ``field``'s kind, range-checked from its metadata.
+
+    numpy scalars become the Python numbers they equal (so that they give the same cache keys),
+    sequences become tuples (hashable), and a float where an integer is needed is refused, never
+    truncated.
+    """
+    name = field.name
+    if typing.get_origin(kind) is Literal:
+        choices = typing.get_args(kind)
+        if not isinstance(value, str) or value not in choices:
+            _fail(name, f"unknown value {value!r}; choose one of {', '.join(choices)}")
+        return value
+    if kind is bool:
+        if isinstance(value, np.bool_):
+            value = bool(value)
+        if not isinstance(value, bool):
+            _fail(name, f"must be True or False, got {value!r}")
+        return value
+    if typing.get_origin(kind) is tuple:
+        integral = typing.get_args(kind)[0] is int
+        if isinstance(value, (str, bytes, dict)) or not hasattr(value, "__iter__"):
+            _fail(name, f"must be a sequence of numbers, got {value!r}")
+        values = tuple(value)
+        numbers = (int, np.integer) if integral else (int, float, np.integer, np.floating)
+        if any(isinstance(v, (bool, np.bool_)) or not isinstance(v, numbers) for v in values):
+            _fail(name, f"must be a sequence of {'integers' if integral else 'numbers'}, got {values!r}")
+        return tuple(int(v) if integral else float(v) for v in values)
+    if kind is int:
+        if isinstance(value, np.integer):
+            value = int(value)
+        if isinstance(value, bool) or not isinstance(value, int):
+            _fail(name, f"must be an integer, got {value!r}")
+    else:
+        if isinstance(value, (np.integer, np.floating)) and not isinstance(value, np.bool_):
+            value = value.item()
+        if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+            _fail(name, f"must be a finite number, got {value!r}")
+    _check_range(field, kind, value)
+    return value
+
+
+def _check_range(field: dataclasses.Field, kind, value) -> None:
+    meta = field.metadata
+    low, high = meta.get("low"), meta.get("high")
+    below = low is not None and (value <= low if meta["low_open"] else value < low)
+    above = high is not None and (value >= high if meta["high_open"] else value > high)
+    if not (below or above):
+        return
+    if low is not None and high is not None:
+        if kind is int:
+            bounds = f"in {low}..{high}"
+        else:
+            bounds = f"in {'(' if meta['low_open'] else '['}{low:g}, {high:g}{')' if meta['high_open'] else ']'}"
+    elif low is not None:
+        bounds = f"{'>' if meta['low_open'] else '>='} {low:g}"
+    else:
+        bounds = f"{'<' if meta['high_open'] else '<='} {high:g}"
+    _fail(field.name, f"must be {bounds}, got {value}")
 
 
 def _did_you_mean(name: str) -> str:
@@ -491,6 +487,8 @@ def parse_param_assignment(text: str) -> tuple[str, object]:
     if "=" not in text:
         raise ParameterError(f"--param {text!r}: expected name=value")
     name, raw = (part.strip() for part in text.split("=", 1))
+    if name in NOT_ADOPTED:
+        raise _not_adopted([name])
     defaults = {f.name: f.default for f in dataclasses.fields(TrackerParams)}
     if name not in defaults:
         raise ParameterError(f"--param {text!r}: unknown parameter {name!r}" + _did_you_mean(name))

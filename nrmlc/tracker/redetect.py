@@ -10,6 +10,8 @@ Chosen on the development set: docs/findings/round-09-redetection-and-colour.md.
 """
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 
 #: eps_pos* at or above which a frame runs the search: 1 up to rounding, i.e. the best
@@ -22,30 +24,27 @@ def needs_search(params, best_error_positive: float) -> bool:
     return params.redetect_count > 0 and best_error_positive >= REDETECT_TRIGGER
 
 
-def search(tracker, frame: np.ndarray, states: np.ndarray, candidates: np.ndarray, coded: dict) -> tuple:
-    """This frame's particles, patches and codes with the search's candidates appended.
+def search(tracker, frame: np.ndarray, states: np.ndarray, coding) -> tuple:
+    """This frame's particles and their coding with the search's candidates appended.
 
     Parameters
     ----------
     tracker : nrmlc.tracker.algorithm.NRMLCTracker
         Its estimate, motion model, patches and coder are used.
     frame : (height, width) float32
-    states : (n, 6) float64, candidates : (n, patch_size**2) float32
-    coded : dict of (n, ...) arrays
-        What :meth:`NRMLCTracker.encode` gave for ``candidates``.
+    states : (n, 6) float64
+    coding : nrmlc.tracker.algorithm.Coding
+        What :meth:`NRMLCTracker.encode` gave for the particles' patches.
 
     Returns
     -------
-    states (n + r, 6), candidates (n + r, patch_size**2), coded (dict of (n + r, ...) arrays),
-    with r = ``redetect_count``. A search candidate whose eps_pos is not below
-    ``redetect_accept`` gets log h = -inf: it can be neither the estimate nor resampled.
+    states (n + r, 6) and their Coding (n + r candidates), with r = ``redetect_count``. A search
+    candidate whose eps_pos is not below ``redetect_accept`` gets log h = -inf: it can be
+    neither the estimate nor resampled.
     """
     p = tracker.params
-    extra = tracker._diffuse(np.tile(tracker.state, (p.redetect_count, 1)), p.redetect_count, p.redetect_factor)
-    extra_candidates = tracker.patches(frame, extra)
-    extra_coded = tracker.encode(extra_candidates)
-    tracker._add_scale_prior(extra_coded, extra)
-    extra_coded["log_confidence"] = np.where(extra_coded["error_positive"] < p.redetect_accept,
-                                             extra_coded["log_confidence"], -np.inf)
-    merged = {name: np.concatenate([coded[name], extra_coded[name]]) for name in coded}
-    return np.vstack([states, extra]), np.vstack([candidates, extra_candidates]), merged
+    extra = tracker.diffuse(np.tile(tracker.state, (p.redetect_count, 1)), p.redetect_factor)
+    extra_coding = tracker.encode(tracker.patches(frame, extra))
+    extra_coding = dataclasses.replace(extra_coding, log_confidence=np.where(
+        extra_coding.error_positive < p.redetect_accept, extra_coding.log_confidence, -np.inf))
+    return np.vstack([states, extra]), coding.joined(extra_coding)
