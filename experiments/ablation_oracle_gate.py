@@ -58,10 +58,10 @@ class OracleGateTracker(NRMLCTracker):
         self.truth = np.asarray(truth, dtype=np.float64)
         self.gate = gate
 
-    def _update_templates(self, frame, result) -> None:
+    def _update_templates(self, frame, result, new) -> None:
         index = self.frame_index
         if self.gate == "rule" or index >= len(self.truth) or not usable_boxes(self.truth[index]):
-            super()._update_templates(frame, result)
+            super()._update_templates(frame, result, new)
             return
         p = self.params
         rule = not (p.occlusion_detection and result.occluded) and result.error_positive < p.update_error_threshold
@@ -72,7 +72,7 @@ class OracleGateTracker(NRMLCTracker):
         kept = result.occluded, result.error_positive
         result.occluded, result.error_positive = not accept, (0.0 if accept else np.inf)
         try:
-            super()._update_templates(frame, result)
+            super()._update_templates(frame, result, new)
         finally:
             result.occluded, result.error_positive = kept
 

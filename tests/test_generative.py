@@ -105,14 +105,14 @@ def _boxes(sequence, seed=0, **changes):
 
 def test_the_term_changes_the_ranking_by_its_weight(sequence):
     tracker, boxes = _boxes(sequence)
-    coded = tracker.last_candidates
-    similarity = coded["similarity"]
+    coded = tracker.last_coding
+    similarity = coded.similarity
     top = np.argsort(-similarity)[:SETTINGS["generative_candidates"]]
     assert np.all(similarity <= 1.0 + 1e-9) and np.all(similarity[top] >= similarity.min())
-    plain = -tracker.params.alpha * (coded["error_positive"] - coded["error_negative"])
-    recognised = coded["error_positive"] < 0.99
+    plain = -tracker.params.alpha * (coded.error_positive - coded.error_negative)
+    recognised = coded.error_positive < 0.99
     assert recognised.mean() > 0.5
-    np.testing.assert_allclose(coded["log_confidence"][recognised],
+    np.testing.assert_allclose(coded.log_confidence[recognised],
                                plain[recognised] + 10.0 * np.log(similarity[recognised]))
     assert not np.array_equal(boxes, _boxes(sequence, generative_weight=0.0)[1])
     np.testing.assert_array_equal(boxes, _boxes(sequence)[1])  # seeded
@@ -124,21 +124,21 @@ def test_where_no_positive_takes_part_the_term_does_not_rank(sequence):
     tracker, _ = _boxes(sequence)
     negatives = tracker.negative_templates[:30]
     coded = tracker.encode(negatives)
-    assert np.all(coded["error_positive"] >= 0.99)
-    np.testing.assert_array_equal(coded["log_confidence"],
-                                  -tracker.params.alpha * (coded["error_positive"] - coded["error_negative"]))
-    assert np.ptp(coded["similarity"]) > 0  # the similarity differs, yet does not rank them
+    assert np.all(coded.error_positive >= 0.99)
+    np.testing.assert_array_equal(coded.log_confidence,
+                                  -tracker.params.alpha * (coded.error_positive - coded.error_negative))
+    assert np.ptp(coded.similarity) > 0  # the similarity differs, yet does not rank them
     mixed = tracker.encode(np.vstack([negatives, tracker.positive_templates[:5]]))
-    recognised = mixed["error_positive"] < 0.99
-    plain = -tracker.params.alpha * (mixed["error_positive"] - mixed["error_negative"])
-    term = mixed["log_confidence"] - plain
+    recognised = mixed.error_positive < 0.99
+    plain = -tracker.params.alpha * (mixed.error_positive - mixed.error_negative)
+    term = mixed.log_confidence - plain
     # The others get the lowest term among the recognised ones.
     np.testing.assert_allclose(term[~recognised], term[recognised].min())
 
 
 def test_off_is_the_tracker_without_the_term(sequence):
     tracker, boxes = _boxes(sequence, generative_weight=0.0)
-    assert tracker.generative is None and "similarity" not in tracker.last_candidates
+    assert tracker.generative is None and tracker.last_coding.similarity is None
     np.testing.assert_array_equal(boxes, _boxes(sequence, generative_weight=0.0, generative_candidates=7,
                                                 generative_neighbours=2)[1])
 

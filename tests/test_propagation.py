@@ -3,7 +3,6 @@ state's range, the log-domain confidence, presets and the API's input checks."""
 import math
 import warnings
 
-import cv2
 import numpy as np
 import pytest
 from hypothesis import given
@@ -170,9 +169,9 @@ def test_any_alpha_ranks_by_the_error_difference_without_overflow(sequence, alph
         warnings.simplefilter("error")
         tracker.update(sequence.frame(1))
         tracker.sample_particles()
-    coded = tracker.last_candidates
-    difference = coded["error_positive"] - coded["error_negative"]
-    assert coded["best"] == int(np.argmin(difference))
+    coding = tracker.last_coding
+    difference = coding.error_positive - coding.error_negative
+    assert np.array_equal(tracker.state, tracker.particles[int(np.argmin(difference))])
     assert np.isfinite(tracker.last.log_confidence)
 
 
@@ -182,8 +181,7 @@ def test_presets():
     paper = TrackerParams.paper()
     assert paper.template_sampling == "annulus" and paper.propagation == "condensation"
     # Every extension beyond the paper is off in the paper preset.
-    assert (paper.wide_share, paper.estimate_count, paper.velocity_damping, paper.antialias) == (0, 1, 0, 0)
-    assert not paper.keep_initial_positives and paper.dictionaries == "joint"
+    assert (paper.redetect_count, paper.generative_weight) == (0, 0)
     assert TrackerParams.preset("default") == TrackerParams()
     assert TrackerParams.paper(alpha=3.0).alpha == 3.0
     with pytest.raises(ParameterError, match="preset 'nope'"):
@@ -198,14 +196,8 @@ def test_presets():
     (dict(template_sampling="disc"), "template_sampling"),
     (dict(propagation="kalman"), "propagation"),
     (dict(translation_noise="km"), "translation_noise"),
-    (dict(patch_normalization="l1"), "patch_normalization"),
     (dict(positive_sigma=-1.0), "positive_sigma"),
-    (dict(estimate_count=0), "estimate_count"),
-    (dict(estimate_count=700), "estimate_count"),
-    (dict(velocity_damping=1.5), "velocity_damping"),
-    (dict(antialias=-0.1), "antialias"),
     (dict(negative_push=3.0), "negative_push"),
-    (dict(keep_initial_positives="yes"), "keep_initial_positives"),
     (dict(redetect_count=-1), "redetect_count"),
     (dict(redetect_count=2.5), "redetect_count"),
     (dict(redetect_factor=0.5), "redetect_factor"),
@@ -256,94 +248,36 @@ def test_param_tuples_with_empty_elements_are_refused():
         parse_param_assignment("dictionary_sizes=5,,8")
 
 
-def test_per_class_errors_come_from_each_class_alone(sequence):
-    """'per_class': eps_pos is the joint machinery run on the positive templates only (so it
-    is never the empty reconstruction's 1), eps_neg on the negatives only; the joint coding
-    still gives the codes."""
-    joint = _tracker_after_one_frame(sequence)
-    per_class = _tracker_after_one_frame(sequence, dictionaries="per_class")
-    patches = joint.last_candidates["patches"]
-    per_class._set_templates(joint.positive_templates, joint.negative_templates)
-    coded = per_class.encode(patches)
-    positives_only = NRMLCTracker(seed=0, **FAST)
-    positives_only._set_templates(joint.positive_templates, joint.negative_templates[:0])
-    alone = positives_only.encode(patches)
-    np.testing.assert_allclose(coded["error_positive"], alone["error_positive"], rtol=0, atol=1e-9)
-    assert np.all(coded["error_positive"] < 0.999)
-    reference = joint.encode(patches)
-    np.testing.assert_array_equal(coded["codes"], reference["codes"])
+# -- positive replacement ----------------------------------------------------------------
 
-
-def test_wide_particles_spread_wider(sequence):
-    tracker = NRMLCTracker(seed=0, n_particles=4000, propagation="best", translation_noise="pixels",
-                           motion_sigmas=(2.0, 2.0, 0, 0, 0, 0), wide_share=0.25, wide_factor=4.0)
-    tracker.init(sequence.frame(0), sequence.init_box)
-    offsets = tracker.sample_particles()[:, 0] - tracker.state[0]
-    assert np.std(offsets[:3000]) == pytest.approx(2.0, rel=0.06)
-    assert np.std(offsets[3000:]) == pytest.approx(8.0, rel=0.08)
-
-
-# -- extensions: estimate, motion mean, positive replacement --------------------------
-
-def test_estimate_is_the_weighted_mean_of_the_top_particles(sequence):
-    tracker = _tracker_after_one_frame(sequence, estimate_count=5)
-    particles, log_weights = tracker.particles, tracker.log_weights
-    top = np.argsort(-log_weights)[:5]
-    weights = np.exp(log_weights[top] - log_weights[top].max())
-    weights /= weights.sum()
-    np.testing.assert_allclose(tracker.state[[0, 1, 3, 5]], weights @ particles[top][:, [0, 1, 3, 5]])
-    # Scale and aspect are averaged in the log: a geometric mean.
-    np.testing.assert_allclose(tracker.state[[2, 4]], np.exp(weights @ np.log(particles[top][:, [2, 4]])))
-    assert not np.array_equal(tracker.state, particles[top[0]])
-
-
-def test_velocity_damping_moves_the_cloud_by_a_share_of_the_last_displacement(sequence):
-    tracker = _tracker_after_one_frame(sequence, propagation="best", velocity_damping=0.5,
-                                       motion_sigmas=(0, 0, 0, 0, 0, 0))
-    tracker.velocity = np.array([4.0, -2.0])
-    drawn = tracker.sample_particles()
-    np.testing.assert_allclose(drawn[:, :2], np.tile(tracker.state[:2] + [2.0, -1.0], (len(drawn), 1)))
-    # The displacement is that of the estimate between frames, and move_to forgets it.
-    before = tracker.state.copy()
-    tracker.update(sequence.frame(2))
-    np.testing.assert_allclose(tracker.velocity, tracker.state[:2] - before[:2])
-    tracker.move_to((30.0, 40.0, 20.0, 25.0))
-    assert np.array_equal(tracker.velocity, [0.0, 0.0])
-
-
-@pytest.mark.parametrize("keep", [False, True])
-def test_full_positive_set_replaces_the_closest_sparing_the_first_frame_if_asked(sequence, keep):
-    tracker = NRMLCTracker(seed=0, n_positive=3, max_positive=5, keep_initial_positives=keep,
+def test_full_positive_set_replaces_the_closest(sequence):
+    tracker = NRMLCTracker(seed=0, n_positive=3, max_positive=5,
                            update_error_threshold=4.0, occlusion_detection=False, **FAST)
     tracker.init(sequence.frame(0), sequence.init_box)
-    result = tracker.step(sequence.frame(1))
+    result, _, _ = tracker.step(sequence.frame(1))
     noise = np.random.default_rng(0).standard_normal((3, 1024)).astype(np.float32) / 32
     first = tracker.positive_templates
     positives = np.vstack([first, noise[0], first[1] + 0.5 * noise[1]])
     tracker._set_templates(positives, tracker.negative_templates)
     # The new result is nearest to the first frame's template 1, then to later template 4.
     new = first[1] + 0.1 * noise[2]
-    tracker.last_candidates["patches"][tracker.last_candidates["best"]] = new
-    tracker._update_templates(sequence.frame(1), result)
-    replaced = 4 if keep else 1
+    tracker._update_templates(sequence.frame(1), result, new[None, :])
+    replaced = 1
     assert np.array_equal(tracker.positive_templates[replaced], new)
     untouched = [i for i in range(5) if i != replaced]
     assert np.array_equal(tracker.positive_templates[untouched], positives[untouched])
 
 
-def test_antialias_blurs_by_the_sampling_step_and_only_when_asked(sequence):
-    frame = np.ascontiguousarray(sequence.frame(0), dtype=np.float32)
-    if frame.ndim == 3:
-        frame = np.ascontiguousarray(frame.mean(axis=2), dtype=np.float32)
-    plain = NRMLCTracker(seed=0, **FAST)
-    smooth = NRMLCTracker(seed=0, antialias=0.5, **FAST)
-    for tracker in (plain, smooth):
-        tracker.init(sequence.frame(0), sequence.init_box)
-    assert plain.prefilter(frame) is frame
-    smooth.state = smooth.state.copy()
-    smooth.state[2], smooth.state[4] = 5.0, 1.0  # a template pixel of 5 image pixels: std 0.5 * 4 = 2
-    blurred = smooth.prefilter(frame)
-    np.testing.assert_allclose(blurred, cv2.GaussianBlur(frame, (0, 0), 2.0, sigmaY=2.0,
-                                                         borderType=cv2.BORDER_REPLICATE), atol=1e-5)
-    smooth.state[2] = 1.0  # a target no larger than the patch is not blurred
-    assert smooth.prefilter(frame) is frame
+@pytest.mark.parametrize("name", ["patch_normalization", "dictionaries", "wide_share", "wide_factor",
+                                  "estimate_count", "velocity_damping", "antialias", "keep_initial_positives",
+                                  "scale_prior"])
+def test_fields_measured_and_not_adopted_are_refused_with_a_pointer(name):
+    from nrmlc.tracker.params import parse_param_assignment
+
+    pattern = rf"^parameter {name}: measured and not adopted, so removed \(see docs/FINDINGS.md\)$"
+    with pytest.raises(ParameterError, match=pattern):
+        TrackerParams(**{name: 0.5})
+    with pytest.raises(ParameterError, match=pattern):
+        TrackerParams().replace(**{name: 0.5})
+    with pytest.raises(ParameterError, match=pattern):
+        parse_param_assignment(f"{name}=0.5")

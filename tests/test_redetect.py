@@ -54,13 +54,13 @@ def test_only_confident_redetection_candidates_carry_weight():
     for frame in frames[1:JUMP_FRAME + 1]:
         tracker.update(frame)
     assert tracker.last.redetect_searched
-    coded = tracker.last_candidates
-    assert len(coded["states"]) == len(tracker.particles) == 350
+    coded = tracker.last_coding
+    assert len(coded) == len(tracker.particles) == 350
     # The frame's own particles: their best has no positive in its code, so it triggered.
-    local = coded["log_confidence"][:200]
-    assert coded["error_positive"][int(np.argmax(local))] >= REDETECT_TRIGGER
-    extra_error = coded["error_positive"][200:]
-    extra_log = coded["log_confidence"][200:]
+    local = coded.log_confidence[:200]
+    assert coded.error_positive[int(np.argmax(local))] >= REDETECT_TRIGGER
+    extra_error = coded.error_positive[200:]
+    extra_log = coded.log_confidence[200:]
     assert np.all(np.isneginf(extra_log[extra_error >= 0.3]))
     assert np.all(np.isfinite(extra_log[extra_error < 0.3]))
     # The next frame resamples n_particles from all 350; the refused ones have no weight.

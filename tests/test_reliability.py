@@ -80,7 +80,7 @@ def test_duplicate_templates_singular_gram_plain_coding():
     for frame in frames[1:]:
         tracker.update(frame)
         assert_result_finite(tracker.last)
-        codes = tracker.last_candidates["codes"]
+        codes = tracker.last_coding.codes
         assert np.isfinite(codes).all()
         np.testing.assert_allclose(codes.sum(axis=1), 1.0, atol=1e-6)  # still sums to one
 

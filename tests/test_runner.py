@@ -451,10 +451,16 @@ def test_pool_workers_end_when_their_parent_is_killed(tmp_path):
     assert not left
 
 
-def test_a_switch_at_its_no_op_value_is_left_out_of_the_key():
-    from nrmlc.runner import KEY_LEAVES_OUT, params_for_key
-    from nrmlc.tracker.params import TrackerParams
+def test_negative_shares_are_recorded_only_on_request_and_keyed_apart():
+    from nrmlc.data import SyntheticSequence, SyntheticSpec
+    from nrmlc.runner import RunSpec
 
-    assert "scale_prior" in KEY_LEAVES_OUT and "scale_prior" not in params_for_key(TrackerParams())
-    assert params_for_key(TrackerParams(scale_prior=0.33))["scale_prior"] == 0.33
-    assert set(TrackerParams().as_dict()) - set(params_for_key(TrackerParams())) == set(KEY_LEAVES_OUT)
+    sequence = SyntheticSequence(SyntheticSpec(name="shares", seed=0, n_frames=4))
+    plain = RunSpec(sequence, TrackerParams(n_particles=20), n_frames=4)
+    shares = RunSpec(sequence, TrackerParams(n_particles=20), n_frames=4, negative_shares=True)
+    assert "negative_shares" not in plain.description("v") and plain.key("v") != shares.key("v")
+    without, with_shares = plain.result(plain.execute()), shares.result(shares.execute())
+    assert "negative_share_c" not in without.diagnostics
+    np.testing.assert_array_equal(without.boxes, with_shares.boxes)
+    assert with_shares.diagnostics["negative_share_c"].shape == (4,)
+    assert np.all(np.isfinite(with_shares.diagnostics["negative_share_w"][1:]))

@@ -27,7 +27,7 @@ def _after_a_few_frames(sequence, **changes):
     tracker.init(sequence.frame(0), sequence.init_box)
     for index in range(1, 8):
         tracker.update(sequence.frame(index))
-    return tracker, tracker.last_candidates["patches"]
+    return tracker, tracker.last_coding.patches
 
 
 @pytest.fixture(scope="module")
@@ -72,8 +72,10 @@ def test_same_seed_same_boxes_and_different_seeds_differ(sequence, tracked):
 
 def test_diagnostics_are_complete_and_finite(tracked):
     d = tracked.diagnostics
-    for name in ("confidence", "error_positive", "error_negative", "negative_share_c", "negative_share_w"):
+    for name in ("confidence", "error_positive", "error_negative"):
         assert np.all(np.isfinite(d[name][1:])), name
+    # The negative shares are figures' diagnostics: recorded only on request.
+    assert "negative_share_c" not in d
     assert d["codes"].shape[1:] == (10,) and d["coefficients"].shape[1:] == (3, 10)
     # the code's positive/negative split adds up to the whole code
     np.testing.assert_allclose(d["code_sum_positive"][1:] + d["code_sum_negative"][1:], d["codes"][1:].sum(axis=1))
@@ -143,10 +145,10 @@ def test_problem1_literal_confidence_prefers_the_worst_candidate(sequence):
     """Eq. (conf) as printed, 1/exp(-a(e_pos - e_neg)), ranks candidates in reverse (the
     paper's confidence alone: the generative term would add the same to both)."""
     tracker, patches = _after_a_few_frames(sequence, generative_weight=0.0)
-    corrected = tracker.encode(patches)["log_confidence"]
+    corrected = tracker.encode(patches).log_confidence
     tracker.params = tracker.params.replace(confidence="literal")
     try:
-        literal = tracker.encode(patches)["log_confidence"]
+        literal = tracker.encode(patches).log_confidence
     finally:
         tracker.params = tracker.params.replace(confidence="corrected")
     np.testing.assert_allclose(literal + corrected, 0.0, atol=1e-12)
@@ -164,13 +166,13 @@ def test_problem2_printed_closed_form_does_not_sum_to_one(coded_frame):
     tracker, patches = coded_frame
     y = patches[0].astype(np.float64)
     coded = tracker.encode(patches)
-    basis = tracker.templates[coded["neighbours"][0, :5]].astype(np.float64).T  # (1024, 5)
+    basis = tracker.templates[coded.neighbours[0, :5]].astype(np.float64).T  # (1024, 5)
     a = basis - y[:, None]
     f = a.T @ a + 1.0 * np.eye(5)
     printed = np.linalg.solve(f, np.ones(5))
     assert abs(printed.sum() - 1) > 0.5  # the printed form is far from sum-to-one
     rescaled = printed / printed.sum()
-    np.testing.assert_allclose(coded["coefficients"][0, 0, :5], rescaled, rtol=1e-4, atol=1e-6)
+    np.testing.assert_allclose(coded.coefficients[0, 0, :5], rescaled, rtol=1e-4, atol=1e-6)
     # and it minimises ||y - Bc||^2 + lam ||c||^2 over 1'c = 1: any feasible step increases it
     objective = lambda c: np.sum((y - basis @ c) ** 2) + np.sum(c**2)
     rng = np.random.default_rng(0)
@@ -192,12 +194,12 @@ def test_problem3_algorithm1_is_at_its_fixed_point_after_one_step(coded_frame):
     finally:
         tracker.params = original
     for iterations in (3, 10):
-        assert np.array_equal(results[iterations]["codes"], results[2]["codes"])
-        assert np.array_equal(results[iterations]["weights"], results[2]["weights"])
+        assert np.array_equal(results[iterations].codes, results[2].codes)
+        assert np.array_equal(results[iterations].weights, results[2].weights)
     # T = 1 outputs d computed with the initial uniform w (step 3.1 before 3.2)
-    uniform = (results[1]["coefficients"]).mean(axis=1)
-    np.testing.assert_allclose(results[1]["codes"], uniform, atol=1e-12)
-    assert not np.allclose(results[1]["codes"], results[2]["codes"])
+    uniform = (results[1].coefficients).mean(axis=1)
+    np.testing.assert_allclose(results[1].codes, uniform, atol=1e-12)
+    assert not np.allclose(results[1].codes, results[2].codes)
 
 
 def test_problem4_occlusion_threshold_is_a_parameter(coded_frame):
@@ -211,15 +213,15 @@ def test_problem5_errors_are_squared_distances_of_unit_vectors(coded_frame):
     tracker, patches = coded_frame
     coded = tracker.encode(patches)
     n_pos = len(tracker.positive_templates)
-    i = int(np.argmax(coded["log_confidence"]))
+    i = int(np.argmax(coded.log_confidence))
     d = np.zeros(len(tracker.templates))
-    d[coded["neighbours"][i]] = coded["codes"][i]
+    d[coded.neighbours[i]] = coded.codes[i]
     y = patches[i].astype(np.float64)
     templates = tracker.templates.astype(np.float64)
     e_pos = np.sum((y - templates[:n_pos].T @ d[:n_pos]) ** 2)
     e_neg = np.sum((y - templates[n_pos:].T @ d[n_pos:]) ** 2)
-    np.testing.assert_allclose([coded["error_positive"][i], coded["error_negative"][i]], [e_pos, e_neg], atol=1e-5)
-    assert np.all((coded["error_positive"] >= -1e-9) & (coded["error_positive"] <= 4 + 1e-9))
+    np.testing.assert_allclose([coded.error_positive[i], coded.error_negative[i]], [e_pos, e_neg], atol=1e-5)
+    assert np.all((coded.error_positive >= -1e-9) & (coded.error_positive <= 4 + 1e-9))
 
 
 def test_positive_set_is_capped_and_replaces_the_closest(sequence):
@@ -232,7 +234,8 @@ def test_positive_set_is_capped_and_replaces_the_closest(sequence):
         counts.append(len(tracker.positive_templates))
     assert counts == [4, 4, 4, 4, 4]
     # the newest result is in the set
-    new = tracker.last_candidates["patches"][tracker.last_candidates["best"]]
+    coding = tracker.last_coding
+    new = coding.patches[int(np.argmax(coding.log_confidence))]
     assert np.any(np.all(tracker.positive_templates == new, axis=1))
 
 
@@ -267,41 +270,12 @@ def test_occlusion_blocks_positive_updates(sequence):
 
 @pytest.mark.parametrize("coding", ["constrained", "plain"])
 def test_other_coding_modes_track(sequence, coding):
-    result = track_sequence(sequence, TrackerParams(coding=coding, **FAST), seed=0, n_frames=20)
+    result = track_sequence(sequence, TrackerParams(coding=coding, **FAST), seed=0, n_frames=20,
+                            negative_shares=True)
     assert np.all(np.isfinite(result.boxes))
     if coding == "constrained":
         assert np.all(result.diagnostics["negative_share_c"][1:] == 0)
         assert np.all(result.diagnostics["negative_share_w"][1:] == 0)
-
-
-def test_scale_prior_is_a_gaussian_in_the_log_size_about_the_initial_box(sequence):
-    tracker = NRMLCTracker(seed=0, **FAST, scale_prior=0.25)
-    tracker.init(sequence.frame(0), sequence.init_box)
-    states = np.tile(tracker.state, (3, 1))
-    states[1, 2] *= 0.5                  # half the width and height
-    states[2, 4] *= 4.0                  # four times the height: twice the geometric-mean size
-    coded = {"log_confidence": np.zeros(3)}
-    tracker._add_scale_prior(coded, states)
-    expected = -0.5 * (np.log([1.0, 0.5, 2.0]) / 0.25) ** 2
-    np.testing.assert_allclose(coded["log_confidence"], expected, atol=1e-12)
-    # Off (the default and the paper): the confidence is left as it is.
-    off = NRMLCTracker(seed=0, **FAST)
-    off.init(sequence.frame(0), sequence.init_box)
-    coded = {"log_confidence": np.ones(3)}
-    off._add_scale_prior(coded, states)
-    assert coded["log_confidence"].tolist() == [1.0, 1.0, 1.0]
-
-
-def test_scale_prior_keeps_a_shrinking_box_nearer_the_initial_size(sequence):
-    from nrmlc.tracker.loop import track_sequence as run
-
-    spread = {}
-    for sigma in (0.0, 0.05):
-        boxes = run(sequence, TrackerParams(**FAST, scale_prior=sigma), seed=1).boxes
-        size = np.sqrt(boxes[:, 2] * boxes[:, 3])
-        spread[sigma] = float(np.max(np.abs(np.log(size / size[0]))))
-    # A tight prior holds the size within a few percent of the initial one.
-    assert spread[0.05] < 0.15 and spread[0.05] <= spread[0.0] + 1e-9
 
 
 def test_a_misspelt_parameter_gets_a_suggestion():

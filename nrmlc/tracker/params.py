@@ -420,7 +420,8 @@ def _coerce(field: dataclasses.Field, kind, value):
     if typing.get_origin(kind) is Literal:
         choices = typing.get_args(kind)
         if not isinstance(value, str) or value not in choices:
-            _fail(name, f"unknown value {value!r}; choose one of {', '.join(choices)}")
+            noun = {"coding": "mode", "confidence": "form"}.get(name, "value")
+            _fail(name, f"unknown {noun} {value!r}; choose one of {', '.join(choices)}")
         return value
     if kind is bool:
         if isinstance(value, np.bool_):
