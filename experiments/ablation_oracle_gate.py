@@ -22,7 +22,6 @@ from __future__ import annotations
 
 import functools
 import sys
-import time
 from dataclasses import dataclass
 from typing import ClassVar
 
@@ -36,6 +35,7 @@ from nrmlc.geometry import usable_boxes
 from nrmlc.metrics import overlaps
 from nrmlc.runner import description_key, frames_tracked, sequence_identity
 from nrmlc.tracker.algorithm import NRMLCTracker
+from nrmlc.tracker.loop import track_sequence
 from nrmlc.tracker.params import TrackerParams
 
 STEM = "ablation_oracle_gate"
@@ -110,15 +110,10 @@ class OracleGateRun:
         n = self.frames()
         truth = np.asarray(self.sequence.groundtruth, dtype=np.float64)[:n]
         tracker = OracleGateTracker(truth, self.gate, seed=self.seed, params=self.params)
-        start = time.perf_counter()
-        tracker.init(self.sequence.frame(0), self.sequence.init_box)
-        boxes = [np.asarray(tracker.initial_box, dtype=np.float64)]
-        updates = [False]
-        for index in range(1, n):
-            boxes.append(np.asarray(tracker.update(self.sequence.frame(index)), dtype=np.float64))
-            updates.append(tracker.last.updated_positive)
-        return {"boxes": np.array(boxes), "updated_positive": np.array(updates),
-                "seconds": np.float64(time.perf_counter() - start)}
+        run = track_sequence(self.sequence, n_frames=n, tracker=tracker)
+        updates = np.asarray(run.diagnostics.get("updated_positive", np.zeros(n)), dtype=bool)
+        updates[0] = False
+        return {"boxes": run.boxes, "updated_positive": updates, "seconds": np.float64(run.seconds_total)}
 
     def result(self, arrays: dict) -> dict:
         return dict(arrays)

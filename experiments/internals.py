@@ -21,7 +21,6 @@ real data; ``context.analysis_budget`` overrides it (what the tests do).
 """
 from __future__ import annotations
 
-import time
 from dataclasses import dataclass, replace
 from typing import ClassVar
 
@@ -226,28 +225,26 @@ class Collection:
         return description_key(self.description(version))
 
     def execute(self) -> dict:
-        from nrmlc.tracker.algorithm import NRMLCTracker
+        from nrmlc.tracker.loop import track_sequence
 
         sequence, params, seed, budget = self.sequence, self.params, self.seed, self.budget
         n_frames = self.frames()
         wanted = set(sampled_frames(n_frames, budget.every, params.update_interval))
-        tracker = NRMLCTracker(seed=seed, params=params)
         rng = np.random.default_rng([int(seed), 7919])
-        start = time.perf_counter()
-        tracker.init(sequence.frame(0), sequence.init_box)
         records = []
-        boxes = [np.asarray(tracker.initial_box, dtype=np.float64)]
-        for index in range(1, n_frames):
-            boxes.append(np.asarray(tracker.update(sequence.frame(index)), dtype=np.float64))
+
+        def record(index, tracker, frame):
             if index in wanted:
-                record = _record(tracker, index, rng, budget.n_candidates)
-                if record is not None:
-                    records.append(record)
+                found = _record(tracker, index, rng, budget.n_candidates)
+                if found is not None:
+                    records.append(found)
+
+        run = track_sequence(sequence, params, seed=seed, n_frames=n_frames, on_frame=record)
         if not records:
             raise RuntimeError(f"{sequence.name}: no frame recorded (n_frames={n_frames}, every={budget.every})")
         arrays = _stack_records(records)
-        arrays["boxes"] = np.array(boxes)
-        arrays["seconds"] = np.float64(time.perf_counter() - start)
+        arrays["boxes"] = run.boxes
+        arrays["seconds"] = np.float64(run.seconds_total)
         arrays["n_tracked"] = np.int64(n_frames)
         return arrays
 

@@ -17,7 +17,6 @@ from __future__ import annotations
 
 import functools
 import sys
-import time
 from dataclasses import dataclass
 from typing import ClassVar
 
@@ -81,18 +80,14 @@ class ScaleProfile:
     def execute(self) -> dict:
         from nrmlc.geometry import box_to_state, usable_boxes
         from nrmlc.data.image import as_gray_frame
-        from nrmlc.tracker.algorithm import NRMLCTracker
+        from nrmlc.tracker.loop import track_sequence
 
         sequence, params = self.sequence, self.params
         groundtruth = sequence.groundtruth
         usable = usable_boxes(groundtruth)
-        tracker = NRMLCTracker(seed=self.seed, params=params)
-        start = time.perf_counter()
-        tracker.init(sequence.frame(0), sequence.init_box)
-        boxes = [np.asarray(tracker.initial_box, dtype=np.float64)]
         frames, error_positive, error_negative = [], [], []
-        for index in range(1, self.frames()):
-            image = sequence.frame(index)
+
+        def code_scales(index, tracker, image):
             if usable[index]:
                 states = np.repeat(box_to_state(groundtruth[index][None, :], params.patch_size), len(SCALES), axis=0)
                 states[:, 2] *= np.asarray(SCALES)
@@ -101,12 +96,14 @@ class ScaleProfile:
                 frames.append(index)
                 error_positive.append(coding.error_positive)
                 error_negative.append(coding.error_negative)
-            boxes.append(np.asarray(tracker.update(image), dtype=np.float64))
+
+        run = track_sequence(sequence, params, seed=self.seed, n_frames=self.frames(), before_update=code_scales)
+        boxes = run.boxes
         empty = np.empty((0, len(SCALES)))
-        return {"boxes": np.array(boxes), "frames": np.array(frames, dtype=np.int64),
+        return {"boxes": boxes, "frames": np.array(frames, dtype=np.int64),
                 "error_positive": np.array(error_positive) if frames else empty,
                 "error_negative": np.array(error_negative) if frames else empty,
-                "seconds": np.float64(time.perf_counter() - start)}
+                "seconds": np.float64(run.seconds_total)}
 
     def result(self, arrays: dict) -> dict:
         return dict(arrays, name=self.sequence.name)

@@ -67,7 +67,8 @@ def _stack(results: list[FrameResult], name: str) -> np.ndarray:
 
 def track_sequence(sequence, params: TrackerParams | None = None, seed: int = 0, n_frames: int | None = None,
                    init_box=None, progress: bool = False, on_frame=None, recentre_boxes=None,
-                   recentre_every: int = 0, negative_shares: bool = False) -> TrackResult:
+                   recentre_every: int = 0, negative_shares: bool = False, tracker: NRMLCTracker | None = None,
+                   before_update=None) -> TrackResult:
     """Track ``sequence`` from its first frame.
 
     Parameters
@@ -83,6 +84,10 @@ def track_sequence(sequence, params: TrackerParams | None = None, seed: int = 0,
         Show a tqdm progress bar on stderr.
     on_frame : callable(frame_index, tracker, frame), optional
         Called after every frame (e.g. to draw a video or collect statistics).
+    before_update : callable(frame_index, tracker, frame), optional
+        Called on every frame after the first, before the tracker sees it (e.g. to code other
+        candidates on the templates the frame is tracked with; it must draw nothing from the
+        tracker's generator, or the boxes change).
     recentre_boxes : (n_frames, 4) array, optional
         Diagnostics only. After every ``recentre_every``-th frame whose row here
         is finite, the estimate moves to that box (:meth:`NRMLCTracker.move_to`);
@@ -95,11 +100,16 @@ def track_sequence(sequence, params: TrackerParams | None = None, seed: int = 0,
         (diagnostics ``negative_share_c``, ``negative_share_w``;
         :func:`nrmlc.tracker.algorithm.negative_shares`), for the reports that show them.
 
+    tracker : NRMLCTracker, optional
+        The tracker to run (e.g. a subclass for a diagnostic); ``params`` and ``seed`` are then
+        its own.
+
     Returns
     -------
     TrackResult
     """
-    tracker = NRMLCTracker(seed=seed, params=params)
+    if tracker is None:
+        tracker = NRMLCTracker(seed=seed, params=params)
     if n_frames is not None and (isinstance(n_frames, bool) or not isinstance(n_frames, (int, np.integer))
                                  or n_frames < 1):
         raise ParameterError(f"n_frames must be an integer >= 1 (or None: all frames), got {n_frames!r}")
@@ -131,6 +141,8 @@ def track_sequence(sequence, params: TrackerParams | None = None, seed: int = 0,
             boxes.append(np.array(tracker.initial_box, dtype=np.float64))
             states.append(tracker.state.copy())
         else:
+            if before_update is not None:
+                before_update(index, tracker, frame)
             boxes.append(tracker.update(frame))
             states.append(tracker.state.copy())
             results.append(tracker.last)
