@@ -33,7 +33,7 @@ from experiments.tables import fmt, mean_std, save_figure, write_csv
 from nrmlc import io
 from nrmlc.geometry import usable_boxes
 from nrmlc.metrics import overlaps
-from nrmlc.runner import description_key, frames_tracked, sequence_identity
+from nrmlc.runner import CachedJob, sequence_identity
 from nrmlc.tracker.algorithm import NRMLCTracker
 from nrmlc.tracker.loop import track_sequence
 from nrmlc.tracker.params import TrackerParams
@@ -78,7 +78,7 @@ class OracleGateTracker(NRMLCTracker):
 
 
 @dataclass(frozen=True)
-class OracleGateRun:
+class OracleGateRun(CachedJob):
     """One run of :class:`OracleGateTracker`: a job of :class:`nrmlc.runner.RunCache`, stored under
     ``<cache>/oracle_gate/``."""
 
@@ -95,16 +95,10 @@ class OracleGateRun:
     def label(self) -> str:
         return f"oracle gate ({self.gate}) on {self.sequence.name}"
 
-    def frames(self) -> int:
-        return frames_tracked(self.sequence, self.n_frames)
-
     def description(self, version: str) -> dict:
         return {"sequence": sequence_identity(self.sequence), "params": self.params.as_dict(), "seed": int(self.seed),
                 "gate": self.gate, "oracle_iou": ORACLE_IOU, "n_frames": self.n_frames,
                 "oracle_version": ORACLE_VERSION, "code_version": version}
-
-    def key(self, version: str) -> str:
-        return description_key(self.description(version))
 
     def execute(self) -> dict:
         n = self.frames()
@@ -114,9 +108,6 @@ class OracleGateRun:
         updates = np.asarray(run.diagnostics.get("updated_positive", np.zeros(n)), dtype=bool)
         updates[0] = False
         return {"boxes": run.boxes, "updated_positive": updates, "seconds": np.float64(run.seconds_total)}
-
-    def result(self, arrays: dict) -> dict:
-        return dict(arrays)
 
 
 def _jobs(context, sequences, gate: str) -> list:

@@ -26,7 +26,7 @@ from typing import ClassVar
 
 import numpy as np
 
-from nrmlc.runner import description_key, frames_tracked, sequence_identity
+from nrmlc.runner import CachedJob, sequence_identity
 from nrmlc.tracker.params import TrackerParams
 
 #: Bump when the recorded content changes (invalidates the collection cache).
@@ -192,7 +192,7 @@ def _stack_records(records: list[dict]) -> dict:
 
 
 @dataclass(frozen=True)
-class Collection:
+class Collection(CachedJob):
     """Track a sequence and record the coding step's internals at sampled frames.
 
     A job of :class:`nrmlc.runner.RunCache` (stored under ``<cache>/analysis/``),
@@ -212,17 +212,14 @@ class Collection:
     def label(self) -> str:
         return f"internals of {self.sequence.name}"
 
-    def frames(self) -> int:
-        return frames_tracked(self.sequence, self.budget.max_frames)
+    def frame_cap(self) -> int | None:
+        return self.budget.max_frames
 
     def description(self, version: str) -> dict:
         return {"sequence": sequence_identity(self.sequence), "params": self.params.as_dict(),
                 "seed": int(self.seed), "max_frames": self.budget.max_frames, "every": self.budget.every,
                 "n_candidates": self.budget.n_candidates, "collector": COLLECTOR_VERSION, "n_nearest": N_NEAREST,
                 "code_version": version}
-
-    def key(self, version: str) -> str:
-        return description_key(self.description(version))
 
     def execute(self) -> dict:
         from nrmlc.tracker.loop import track_sequence

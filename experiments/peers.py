@@ -36,7 +36,7 @@ from typing import ClassVar
 import numpy as np
 
 from experiments.sequence_sets import PAPER_NAME_OF, paper_name
-from nrmlc.runner import RunCache, description_key, frames_tracked, sequence_identity
+from nrmlc.runner import CachedJob, RunCache, sequence_identity
 
 #: Bump when the live runner's behaviour changes (it is part of every key, as is each
 #: tracker's entry of :data:`LIVE_PARAMETERS`).
@@ -107,7 +107,7 @@ def live_label(name: str) -> str:
 
 
 @dataclass(frozen=True)
-class LiveSpec:
+class LiveSpec(CachedJob):
     """One live OpenCV run: ``tracker`` on the first ``n_frames`` frames of ``sequence``.
 
     A job of :class:`nrmlc.runner.RunCache`, stored under ``<cache>/peers/``; its key
@@ -125,17 +125,11 @@ class LiveSpec:
     def label(self) -> str:
         return f"{self.tracker} (OpenCV) {self.sequence.name}"
 
-    def frames(self) -> int:
-        return frames_tracked(self.sequence, self.n_frames)
-
     def description(self, version: str | None = None) -> dict:
         return {"tracker": self.tracker, "opencv": opencv_version(), "runner": LIVE_RUNNER_VERSION,
                 "parameters": LIVE_PARAMETERS.get(self.tracker, {}),
                 "sequence": sequence_identity(self.sequence), "sequence_name": self.sequence.name,
                 "n_frames": self.n_frames}
-
-    def key(self, version: str | None = None) -> str:
-        return description_key(self.description())
 
     def execute(self) -> dict:
         return run_live(self)

@@ -27,7 +27,7 @@ from experiments.failure_mechanisms import ON_TARGET_IOU, blocks
 from experiments.grid import json_report, script_main
 from experiments.internals import describe_params
 from experiments.tables import save_figure
-from nrmlc.runner import description_key, frames_tracked, sequence_identity
+from nrmlc.runner import CachedJob, frames_tracked, sequence_identity
 from nrmlc.tracker.params import TrackerParams
 
 STEM = "scale_likelihood"
@@ -46,7 +46,7 @@ PROFILE_VERSION = 1
 
 
 @dataclass(frozen=True)
-class ScaleProfile:
+class ScaleProfile(CachedJob):
     """Track a sequence and, at each annotated frame, code the ground truth at :data:`SCALES`.
 
     A job of :class:`nrmlc.runner.RunCache` (stored under ``<cache>/analysis/``), keyed by
@@ -66,16 +66,13 @@ class ScaleProfile:
     def label(self) -> str:
         return f"scale profile of {self.sequence.name}"
 
-    def frames(self) -> int:
-        return frames_tracked(self.sequence, self.max_frames)
+    def frame_cap(self) -> int | None:
+        return self.max_frames
 
     def description(self, version: str) -> dict:
         return {"sequence": sequence_identity(self.sequence), "params": self.params.as_dict(),
                 "seed": int(self.seed), "max_frames": self.max_frames, "scales": list(SCALES),
                 "profile": PROFILE_VERSION, "code_version": version}
-
-    def key(self, version: str) -> str:
-        return description_key(self.description(version))
 
     def execute(self) -> dict:
         from nrmlc.geometry import box_to_state, usable_boxes

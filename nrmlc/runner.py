@@ -14,6 +14,10 @@ A *job* is anything with
 - ``folder``: a sub-folder of the cache ("" for tracking runs);
 - ``label``: free text for progress lines.
 
+:class:`Job` states this contract as a :class:`typing.Protocol`; :class:`CachedJob` is the base
+class the jobs share (the key from the description, the frame count from the sequence and the
+job's frame cap).
+
 :class:`RunSpec` (one tracking run) is the main one; the experiments add live
 OpenCV peer runs and recorded tracker internals. Each result is stored under
 ``<cache>/<folder>/<key>.npz`` with a ``<key>.json`` beside it recording what
@@ -51,7 +55,7 @@ import warnings
 import zipfile
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import ClassVar
+from typing import ClassVar, Protocol, runtime_checkable
 
 import numpy as np
 
@@ -121,8 +125,51 @@ def description_key(description: dict) -> str:
     return hashlib.sha256(text.encode()).hexdigest()[:24]
 
 
+@runtime_checkable
+class Job(Protocol):
+    """What :class:`RunCache` needs of a job (module docstring)."""
+
+    folder: ClassVar[str]
+    uses_kernels: ClassVar[bool]
+
+    @property
+    def label(self) -> str: ...
+
+    def description(self, version: str) -> dict: ...
+
+    def key(self, version: str) -> str: ...
+
+    def frames(self) -> int: ...
+
+    def execute(self) -> dict: ...
+
+    def result(self, arrays: dict): ...
+
+
+class CachedJob:
+    """The part every job over one sequence shares: its key is the hash of its description, it
+    tracks the first :meth:`frame_cap` frames of ``self.sequence``, and its result is the arrays."""
+
+    folder: ClassVar[str] = ""
+    #: Runs the numba kernels (so workers load them before timing anything).
+    uses_kernels: ClassVar[bool] = True
+
+    def frame_cap(self) -> int | None:
+        """Frames to track at most (None: all); ``self.n_frames`` unless a job says otherwise."""
+        return self.n_frames
+
+    def frames(self) -> int:
+        return frames_tracked(self.sequence, self.frame_cap())
+
+    def key(self, version: str) -> str:
+        return description_key(self.description(version))
+
+    def result(self, arrays: dict):
+        return dict(arrays)
+
+
 @dataclass(frozen=True)
-class RunSpec:
+class RunSpec(CachedJob):
     """One tracking run: what to track and how.
 
     Attributes
@@ -152,8 +199,6 @@ class RunSpec:
 
     #: Tracking runs live at the top of the cache.
     folder: ClassVar[str] = ""
-    #: Runs the numba kernels (so workers load them before timing anything).
-    uses_kernels: ClassVar[bool] = True
 
     def description(self, version: str) -> dict:
         # Do not change: it decides the key of every cached run (tests/test_runner.py pins one).
@@ -173,12 +218,6 @@ class RunSpec:
         object.__setattr__(self, "seed", _count("RunSpec: seed", self.seed, 0))
         if self.n_frames is not None:
             object.__setattr__(self, "n_frames", _count("RunSpec: n_frames", self.n_frames, 1))
-
-    def key(self, version: str) -> str:
-        return description_key(self.description(version))
-
-    def frames(self) -> int:
-        return frames_tracked(self.sequence, self.n_frames)
 
     def problem(self, arrays: dict) -> str | None:
         """Why ``arrays`` are not a finished run of this spec (None: they are)."""

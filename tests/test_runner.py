@@ -464,3 +464,17 @@ def test_negative_shares_are_recorded_only_on_request_and_keyed_apart():
     np.testing.assert_array_equal(without.boxes, with_shares.boxes)
     assert with_shares.diagnostics["negative_share_c"].shape == (4,)
     assert np.all(np.isfinite(with_shares.diagnostics["negative_share_w"][1:]))
+
+
+def test_every_job_class_follows_the_one_job_contract():
+    from experiments.ablation_oracle_gate import OracleGateRun
+    from experiments.internals import Collection
+    from experiments.peers import LiveSpec
+    from experiments.scale_likelihood import ScaleProfile
+    from nrmlc.runner import CachedJob, Job
+
+    for cls in (RunSpec, OracleGateRun, Collection, LiveSpec, ScaleProfile):
+        assert issubclass(cls, CachedJob) and isinstance(cls.folder, str)
+    sequence = SyntheticSequence(SyntheticSpec(name="job", seed=0, n_frames=6))
+    job = ScaleProfile(sequence, TrackerParams(), 0, max_frames=4)
+    assert isinstance(job, Job) and job.frames() == 4 and job.key("v") == runner.description_key(job.description("v"))
