@@ -21,16 +21,12 @@ import numpy as np
 from experiments import paper_numbers as paper
 from experiments.grid import score, script_main
 from experiments.sequence_sets import paper_name
+from experiments.shared import plain_params
 from experiments.tables import fmt, mean_std, save_figure, write_csv
 from nrmlc import io
 
 STEM = "fig4_lambda_sweep"
 TITLE = "Fig. 4: average overlap rate versus lambda"
-
-
-def plain_params(base):
-    """lambda = beta = 0 as the 'plain' coder (shared with the ablations, so it runs once)."""
-    return base.replace(coding="plain", lam=0.0, beta=0.0)
 
 
 def configurations(context) -> list[tuple[str, object]]:

@@ -27,7 +27,7 @@ from experiments.sequence_sets import DEVELOPMENT_SEQUENCES, PAPER_SEQUENCES
 from nrmlc.config import data_root_from_env
 from nrmlc.io import write_json
 from nrmlc.runner import DEFAULT_CACHE, RunCache, RunSpec, frames_tracked
-from nrmlc.tracker.params import TrackerParams
+from nrmlc.tracker.params import PRESETS, TrackerParams
 
 REPO_ROOT = Path(__file__).resolve().parent.parent
 
@@ -248,6 +248,16 @@ def params_differences(params: TrackerParams, reference: TrackerParams | None = 
     reference = TrackerParams() if reference is None else reference
     mine, theirs = params.as_dict(), reference.as_dict()
     return {k: v for k, v in mine.items() if theirs.get(k) != v}
+
+
+def describe_params(params: TrackerParams) -> str:
+    """Which preset ``params`` are (the closest one) and what differs from it."""
+    name, changed = min(((name, params_differences(params, TrackerParams.preset(name))) for name in PRESETS),
+                        key=lambda pair: len(pair[1]))
+    text = f"the '{name}' preset" + (" (the paper as printed)" if name == "paper" else "")
+    if changed:
+        text += " except " + ", ".join(f"{k} = {v}" for k, v in sorted(changed.items()))
+    return text
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
