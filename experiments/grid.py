@@ -106,7 +106,7 @@ class Context:
 
                 sequences = synthetic_suite(n_sequences=self.n_synthetic)
             elif self.only_sequences is not None:
-                from nrmlc.benchmark import select_sequences
+                from nrmlc.results_layout import select_sequences
 
                 # Only the named folders are opened: the others' warnings are not this run's.
                 sequences = select_sequences(self.data_root, list(self.only_sequences))

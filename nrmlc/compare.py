@@ -62,9 +62,9 @@ from pathlib import Path
 import numpy as np
 
 from nrmlc import io
-from nrmlc.benchmark import MANIFEST_NAME, SEEDS_FOLDER, parse_names, select_sequences
 from nrmlc.errors import DataError, ParameterError
 from nrmlc.otb_results import find_otb_result, is_otb_results_folder, select_trackers, sequence_key
+from nrmlc.results_layout import MANIFEST_NAME, SEEDS_FOLDER, parse_names, select_sequences
 
 #: How a missing prediction is scored, for ``--help`` and the table's footnote;
 #: it restates the "Missing predictions" paragraph of :mod:`nrmlc.metrics`.
@@ -576,8 +576,6 @@ def format_scope(comparison: Comparison) -> str:
 
 def _primary_seed(folder) -> str:
     """The seed of a ``nrmlc benchmark`` folder's top-level files ("" if it does not say)."""
-    from nrmlc.benchmark import MANIFEST_NAME
-
     try:
         return str(json.loads((Path(folder) / MANIFEST_NAME).read_text())["primary_seed"])
     except (OSError, ValueError, KeyError, TypeError):
