@@ -732,6 +732,30 @@ def write_csv(comparison: Comparison, path, attribute_rows=()) -> Path:
 OUTPUT_OPTIONS = ("--plot", "--csv", "--attribute-plot", "--speed-plot")
 
 
+
+@dataclass(frozen=True)
+class EvaluateOptions:
+    """The options of ``evaluate``, as given (``nrmlc.cli`` builds this from its command line)."""
+
+    results: tuple = ()
+    groundtruth: str | None = None
+    json: bool = False
+    include_first: bool = False
+    data: str | None = None
+    names: str | None = None
+    sequences: str | None = None
+    name_map: tuple = ()
+    otb_trackers: str | None = None
+    all_seeds: bool = False
+    common: bool = False
+    max_frames: int | None = None
+    attributes: str | None = None
+    attribute_plot: str | None = None
+    speed_plot: str | None = None
+    plot: str | None = None
+    csv: str | None = None
+
+
 def add_evaluate_arguments(parser: argparse.ArgumentParser) -> None:
     """The options of the folder form of ``evaluate`` (the single-file form's stay in nrmlc.cli)."""
     parser.description = (
@@ -782,7 +806,7 @@ def add_evaluate_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--csv", metavar="OUT.csv", help="write per-sequence and overall scores")
 
 
-def check_outputs(args: argparse.Namespace, inputs=(), input_folders=()) -> None:
+def check_outputs(args: EvaluateOptions, inputs=(), input_folders=()) -> None:
     """Refuse, before any work, an output that is an input, lies inside an input folder, or is given twice."""
     given = [(option, getattr(args, option[2:].replace("-", "_"), None)) for option in OUTPUT_OPTIONS]
     given = [(option, path) for option, path in given if path is not None]
@@ -825,7 +849,7 @@ def _file_boxes(path) -> np.ndarray:
     return boxes
 
 
-def run_evaluate_file(args: argparse.Namespace) -> int:
+def run_evaluate_file(args: EvaluateOptions) -> int:
     """``evaluate --results R.txt|R.mat --groundtruth G.txt``: the scores, each with the frames behind it."""
     from nrmlc.data import read_box_file
     from nrmlc.metrics import evaluate
@@ -885,7 +909,7 @@ def run_evaluate_file(args: argparse.Namespace) -> int:
     return 0
 
 
-def run_evaluate_folders(args: argparse.Namespace) -> int:
+def run_evaluate_folders(args: EvaluateOptions) -> int:
     """``evaluate --results DIR [DIR ...] --data DATA ...``: table on stdout, notes on stderr."""
     if args.groundtruth:
         raise ParameterError("--groundtruth is for one result file; with --data give result folders")
