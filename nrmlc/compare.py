@@ -77,8 +77,6 @@ MISSING_RULE = (
     "scored as it is (overlap 0, the error of its centre). Frame 1 (the given box) and frames without "
     "ground truth are not scored (nrmlc.metrics).")
 
-#: A result file is taken for a sequence only when its first box overlaps the initial box this much.
-FIRST_BOX_MIN_IOU = 0.5
 
 SCORE_NAMES = ("success_auc", "precision_20", "mean_overlap", "mean_center_error")
 
@@ -256,7 +254,7 @@ def find_result(folder, sequence, name_map=None, max_frames: int | None = None):
     """
     from nrmlc.data import read_box_file
     from nrmlc.geometry import usable_boxes
-    from nrmlc.metrics import overlaps
+    from nrmlc.metrics import first_box_mismatch
 
     folder = Path(folder)
     n_frames = len(sequence) if max_frames is None else min(len(sequence), max_frames)
@@ -269,13 +267,11 @@ def find_result(folder, sequence, name_map=None, max_frames: int | None = None):
         except DataError as exc:
             notes.append(f"{path}: not used, unreadable ({exc})")
             continue
-        if check_first and len(boxes) and np.isfinite(boxes[0]).all():
-            iou = float(overlaps(boxes[0], first))
-            if not iou >= FIRST_BOX_MIN_IOU:
-                notes.append(f"{path}: not used, its first box {np.round(boxes[0], 1).tolist()} is not "
-                             f"{sequence.name}'s initial box {np.round(first, 1).tolist()} (IoU {iou:.2f}; "
-                             f"results on another version of the sequence?)")
-                continue
+        mismatch = first_box_mismatch(boxes, first) if check_first and len(boxes) and np.isfinite(boxes[0]).all() else None
+        if mismatch:
+            notes.append(f"{path}: not used, its first box {mismatch[0]} is not {sequence.name}'s initial box "
+                         f"{mismatch[1]} (IoU {mismatch[2]:.2f}; results on another version of the sequence?)")
+            continue
         fitting.append((path, boxes))
     if not fitting:
         return None, None, notes
