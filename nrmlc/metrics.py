@@ -438,14 +438,8 @@ def evaluate_files(
     skip_first : bool, default True
         Do not evaluate frame 0.
 
-    Returns
-    -------
-    Evaluation
-
-    Raises
-    ------
-    DataError
-        On an unreadable file, or when no frame is left to evaluate.
+    Returns the :class:`Evaluation`, as :func:`evaluate` does; raises :class:`DataError` on an
+    unreadable file, or when no frame is left to evaluate.
     """
     predicted = read_box_file(result_path, predictions=True)
     groundtruth = read_box_file(groundtruth_path)
