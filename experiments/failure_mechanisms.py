@@ -93,7 +93,7 @@ import sys
 import numpy as np
 
 from experiments import paper_numbers as paper
-from experiments.grid import describe_params, score, script_main
+from experiments.grid import describe_params, score, script_main, section
 from experiments.sequence_sets import paper_name
 from experiments.shared import LOST_IOU, LOST_RUN, ON_TARGET_IOU, blocks, lock_lost_at
 from experiments.tables import fmt, mean_std, save_figure, write_csv
@@ -584,7 +584,7 @@ def report(context, data: dict) -> dict:
         text += ["", f"Where the default falls short of Table II by more than {SHORT_BY:g} (measures above; a "
                      "mechanism is named when its measure passes the threshold of `NAMED_WHEN`):", ""]
         text += [f"- {line}" for line in short]
-    return {"title": TITLE, "figures": [f"{STEM}.png"], "markdown": "\n".join(text)}
+    return section(TITLE, STEM, text)
 
 
 #: ``python -m experiments.<script> [options]``: this script alone, with the options of ``make figures``.

@@ -260,6 +260,11 @@ def describe_params(params: TrackerParams) -> str:
     return text
 
 
+
+def section(title: str, stem: str, lines: list[str]) -> dict:
+    """A script's section of ``REPORT.md``: its title, its figure ``<stem>.png`` and its markdown lines."""
+    return {"title": title, "figures": [f"{stem}.png"], "markdown": "\n".join(lines)}
+
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """The options every experiment takes (``make figures`` passes them through)."""
     parser.add_argument("--data", default=None, metavar="DIR",
