@@ -27,8 +27,8 @@ from typing import ClassVar
 
 import numpy as np
 
-from experiments.failure_mechanisms import blocks
 from experiments.grid import score, script_main
+from experiments.shared import blocks
 from experiments.tables import fmt, mean_std, save_figure, write_csv
 from nrmlc import io
 from nrmlc.geometry import usable_boxes

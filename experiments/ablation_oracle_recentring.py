@@ -28,7 +28,7 @@ import sys
 import numpy as np
 
 from experiments import paper_numbers as paper
-from experiments.grid import script_main
+from experiments.grid import script_main, section
 from experiments.sequence_sets import paper_name
 from experiments.tables import fmt, mean_std, save_figure, write_csv
 from nrmlc import io
@@ -134,7 +134,7 @@ def report(context, data: dict) -> dict:
     for group, values in data["averages"].items():
         text.append(f"| average, {group} | " + " | ".join(fmt(values[k], 3) for k in labels)
                     + f" | {fmt(values['paper'], 3)} |")
-    return {"title": TITLE, "figures": [f"{STEM}.png"], "markdown": "\n".join(text)}
+    return section(TITLE, STEM, text)
 
 
 #: ``python -m experiments.<script> [options]``: this script alone, with the options of ``make figures``.

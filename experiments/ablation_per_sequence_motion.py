@@ -36,7 +36,7 @@ import sys
 import numpy as np
 
 from experiments import paper_numbers as paper
-from experiments.grid import script_main
+from experiments.grid import script_main, section
 from experiments.sequence_sets import paper_name
 from experiments.tables import fmt, mean_std, save_figure, write_csv
 from nrmlc import io
@@ -188,7 +188,7 @@ def report(context, data: dict) -> dict:
     papers = [r["overlap_paper"] for r in data["rows"] if r["overlap_paper"] is not None]
     text.append(f"| average | | {default:.3f} | {classic:.3f} | "
                 f"{fmt(float(np.mean(papers)), 3) if len(papers) == len(data['rows']) else '–'} |")
-    return {"title": TITLE, "figures": [f"{STEM}.png"], "markdown": "\n".join(text)}
+    return section(TITLE, STEM, text)
 
 
 #: ``python -m experiments.<script> [options]``: this script alone, with the options of ``make figures``.

@@ -49,8 +49,8 @@ import numpy as np
 from experiments import paper_numbers as paper
 from experiments.grid import params_differences, score, script_main
 from experiments.sequence_sets import paper_name
+from experiments.shared import TRIAL_VALUES, plain_params
 from experiments.tables import fmt, mean_std, save_figure, write_csv
-from experiments.fig4_lambda_sweep import plain_params
 from nrmlc import io
 from nrmlc.tracker.generative import LOCAL_STEP
 
@@ -70,11 +70,6 @@ SCALE_SIGMAS = (0.0025, 0.005, 0.01, 0.02)
 METRICS = (("overlap", "mean overlap", 3), ("cle", "CLE (px)", 1), ("negative_share_c", "negative share of c", 4),
            ("negative_share_w", "negative share of w", 4), ("occluded", "frames occluded", 3))
 
-
-#: Numeric extensions beyond the paper, and lineage values, with a trial value each: a row each
-#: when the default has the paper's (off) value. Their screening on the development sequences,
-#: which chose the defaults, is in docs/FINDINGS.md.
-TRIAL_VALUES = {"negative_push": 0.5, "generative_weight": 10.0}
 
 #: Candidates coded by the generative term in round 13 (SCM's grid); its coding row compares them.
 ROUND13_CANDIDATES = 150

@@ -544,7 +544,7 @@ def bench_end_to_end(sequence, n_frames: int | None, rounds: int) -> list[dict]:
 
     Also times one run with decoding included (``track_sequence`` reading the frames).
     """
-    from experiments.ablations import TRIAL_VALUES
+    from experiments.shared import TRIAL_VALUES
     from nrmlc.tracker.params import TrackerParams
     from nrmlc.tracker.loop import track_sequence
 

@@ -125,7 +125,7 @@ def run_measures(results, specs) -> dict:
     dict of target -> {"overlap": [mean overlap], "scale": [:func:`tracked_scale`],
     "lost_at": [share of its frames before the loss of lock, or None]}
     """
-    from experiments.failure_mechanisms import lock_lost_at
+    from experiments.shared import lock_lost_at
 
     table: dict = {}
     for spec, result in zip(specs, results):
@@ -188,7 +188,7 @@ def collapsed(scales: dict, names) -> list[str]:
     return [n for n in names if n in scales and np.nanmedian(scales[n]) < COLLAPSED_BELOW]
 
 
-#: A run "lost early" when lock is lost (:func:`experiments.failure_mechanisms.lock_lost_at`)
+#: A run "lost early" when lock is lost (:func:`experiments.shared.lock_lost_at`)
 #: within this share of its frames.
 EARLY_SHARE = 0.05
 

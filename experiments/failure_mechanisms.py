@@ -6,7 +6,7 @@ Per run (frame 0, the given box, excluded throughout):
 1. **no positive among the nearest**: share of frames whose best candidate has
    eps_pos* >= :data:`NO_POSITIVE` (its k nearest templates are all negatives, so
    eps_pos = |y|^2 = 1 and the ranking rests on eps_neg alone; under
-   ``dictionaries='per_class'`` eps_pos comes from positives only, so this is about 0 by
+   a per-class coding eps_pos would come from positives only, so this is about 0 by
    construction);
 2. **occlusion flag**: share of frames with LEN(neg*) > occlusion_max_negative, and
    positive-template updates per 100 frames;
@@ -93,9 +93,9 @@ import sys
 import numpy as np
 
 from experiments import paper_numbers as paper
-from experiments.grid import score, script_main
-from experiments.internals import describe_params
+from experiments.grid import describe_params, score, script_main, section
 from experiments.sequence_sets import paper_name
+from experiments.shared import LOST_IOU, LOST_RUN, ON_TARGET_IOU, blocks, lock_lost_at
 from experiments.tables import fmt, mean_std, save_figure, write_csv
 from nrmlc import io
 from nrmlc.geometry import usable_boxes
@@ -109,19 +109,13 @@ TITLE = "Failure mechanisms: no positive template among the nearest, occlusion f
 #: (eps_pos = |y|^2 = 1 for unit patches; a little below 1 for rounding): the event that
 #: triggers the tracker's re-detection, at the same cut-off.
 NO_POSITIVE = REDETECT_TRIGGER
-#: Loss of lock: IoU below this ...
-LOST_IOU = 0.1
-#: ... on this many consecutive annotated frames.
-LOST_RUN = 10
 #: Scale drift "at the end": the last this share of the annotated frames (at least one).
 LAST_SHARE = 0.1
 #: Motion beyond reach: a ground-truth step of more than this many sigmas of the translation noise.
 FAST_SIGMAS = 3.0
 #: Template contamination: a positive update whose box overlaps the ground truth by less than this.
 CONTAMINATED_IOU = 0.5
-#: The gate shut on the target: frames with at least this IoU count as holding the target.
-ON_TARGET_IOU = 0.5
-#: ... with the ground truth interpolated across at most this many frames between annotations.
+#: The ground truth is interpolated across at most this many frames between annotations (:func:`truth_at`).
 MAX_INTERPOLATION_GAP = 5
 #: A paper sequence "falls short" when the default's mean overlap is below Table II's by more than this.
 SHORT_BY = 0.05
@@ -162,17 +156,6 @@ def configurations(context) -> list[tuple[str, object, tuple]]:
             ("paper", context.paper_params(), tuple(context.ablation_seeds))]
 
 
-def blocks(context) -> list[tuple[str, list]]:
-    """(block label, sequences): the paper's given sequences, then the development ones (the
-    given sequences when neither set is among them)."""
-    out = [("paper's sequences" if not context.is_synthetic else "synthetic suite", context.paper_sequences())]
-    if context.development_sequences():
-        out.append(("development sequences", context.development_sequences()))
-    out = [(label, list(seqs)) for label, seqs in out if seqs]
-    # Neither set given (``--sequences`` named others): the given ones, rather than nothing.
-    return out or [("other sequences", context.sequences())]
-
-
 def _specs(context, name: str, params, seeds) -> list:
     sequences = [s for _, seqs in blocks(context) for s in seqs]
     return context.specs(sequences, params, seeds, label=f"failure mechanisms: {name}")
@@ -181,30 +164,6 @@ def _specs(context, name: str, params, seeds) -> list:
 def runs(context) -> list:
     """Both configurations on every sequence of :func:`blocks`, each with its own seeds."""
     return [spec for name, params, seeds in configurations(context) for spec in _specs(context, name, params, seeds)]
-
-
-def lock_lost_at(overlaps, frames, iou: float = LOST_IOU, run: int = LOST_RUN) -> int | None:
-    """The first frame that starts ``run`` consecutive evaluated frames with IoU < ``iou``.
-
-    Parameters
-    ----------
-    overlaps : (n,) float
-        IoU of the evaluated (annotated) frames, in order.
-    frames : (n,) int
-        Their 0-based frame indices.
-
-    Returns
-    -------
-    int or None
-        That frame's index, or None when no such run exists.
-    """
-    low = np.asarray(overlaps, dtype=np.float64) < iou
-    if low.size < run:
-        return None
-    # Windows of `run` consecutive entries that are all low: a moving sum equal to `run`.
-    counts = np.convolve(low.astype(np.int64), np.ones(run, dtype=np.int64), mode="valid")
-    hits = np.flatnonzero(counts == run)
-    return int(np.asarray(frames)[hits[0]]) if hits.size else None
 
 
 def truth_at(groundtruth, frames) -> np.ndarray:
@@ -625,7 +584,7 @@ def report(context, data: dict) -> dict:
         text += ["", f"Where the default falls short of Table II by more than {SHORT_BY:g} (measures above; a "
                      "mechanism is named when its measure passes the threshold of `NAMED_WHEN`):", ""]
         text += [f"- {line}" for line in short]
-    return {"title": TITLE, "figures": [f"{STEM}.png"], "markdown": "\n".join(text)}
+    return section(TITLE, STEM, text)
 
 
 #: ``python -m experiments.<script> [options]``: this script alone, with the options of ``make figures``.

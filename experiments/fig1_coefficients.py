@@ -23,7 +23,8 @@ import numpy as np
 from matplotlib.patches import Rectangle
 
 from experiments.grid import json_report, script_main
-from experiments.internals import Budget, budget_for, describe_params, tracker_params
+from experiments.grid import describe_params
+from experiments.internals import Budget, budget_for, tracker_params
 from experiments.tables import save_figure
 from nrmlc.metrics import overlaps
 from nrmlc.runner import RunSpec

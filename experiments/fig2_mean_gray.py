@@ -18,9 +18,8 @@ import sys
 import matplotlib.pyplot as plt
 import numpy as np
 
-from experiments import stats_nonnegativity
-from experiments.grid import json_report, script_main
-from experiments.internals import describe_params
+from experiments.grid import describe_params, json_report, script_main
+from experiments.shared import stats_runs
 from experiments.tables import save_figure
 
 STEM = "fig2_mean_gray"
@@ -39,7 +38,7 @@ def _summary(values: np.ndarray) -> dict:
 
 def runs(context) -> list:
     """The recorded internals this script reads: those of :mod:`experiments.stats_nonnegativity`."""
-    return stats_nonnegativity.runs(context)
+    return stats_runs(context)
 
 
 def collect(context) -> dict:

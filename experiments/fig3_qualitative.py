@@ -18,7 +18,7 @@ import sys
 import numpy as np
 
 from experiments import peers
-from experiments.grid import script_main
+from experiments.grid import script_main, section
 from experiments.sequence_sets import paper_name
 from experiments.tables import save_figure
 from nrmlc import io
@@ -145,7 +145,7 @@ def report(context, data: dict) -> dict:
                 f"{', '.join(in_paper) if in_paper else 'none'} {'is' if len(in_paper) == 1 else 'are'} given "
                 f"here{'' if not absent else ' (' + ', '.join(absent) + ' are not in the data)'}; "
                 "the other given sequences are shown as well.")
-    return {"title": TITLE, "figures": [f"{STEM}.png"], "markdown": "\n".join(text)}
+    return section(TITLE, STEM, text)
 
 
 #: ``python -m experiments.<script> [options]``: this script alone, with the options of ``make figures``.

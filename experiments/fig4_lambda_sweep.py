@@ -19,18 +19,14 @@ import sys
 import numpy as np
 
 from experiments import paper_numbers as paper
-from experiments.grid import score, script_main
+from experiments.grid import score, script_main, section
 from experiments.sequence_sets import paper_name
+from experiments.shared import plain_params
 from experiments.tables import fmt, mean_std, save_figure, write_csv
 from nrmlc import io
 
 STEM = "fig4_lambda_sweep"
 TITLE = "Fig. 4: average overlap rate versus lambda"
-
-
-def plain_params(base):
-    """lambda = beta = 0 as the 'plain' coder (shared with the ablations, so it runs once)."""
-    return base.replace(coding="plain", lam=0.0, beta=0.0)
 
 
 def configurations(context) -> list[tuple[str, object]]:
@@ -136,7 +132,7 @@ def report(context, data: dict) -> dict:
     text.append(f"Measured peak at λ = {best['lam']:g} ({best['overlap']:.3f}); paper: peak at λ = 1. "
                 f"λ = β = 0 (red): {plain['overlap']:.3f} here, {paper.FIG4_NO_REGULARISATION_OVERLAP} in the paper. "
                 "The paper gives the curve only as a figure, so only these two numbers can be compared.")
-    return {"title": TITLE, "figures": [f"{STEM}.png"], "markdown": "\n".join(text)}
+    return section(TITLE, STEM, text)
 
 
 #: ``python -m experiments.<script> [options]``: this script alone, with the options of ``make figures``.

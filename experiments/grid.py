@@ -27,7 +27,7 @@ from experiments.sequence_sets import DEVELOPMENT_SEQUENCES, PAPER_SEQUENCES
 from nrmlc.config import data_root_from_env
 from nrmlc.io import write_json
 from nrmlc.runner import DEFAULT_CACHE, RunCache, RunSpec, frames_tracked
-from nrmlc.tracker.params import TrackerParams
+from nrmlc.tracker.params import PRESETS, TrackerParams
 
 REPO_ROOT = Path(__file__).resolve().parent.parent
 
@@ -106,7 +106,7 @@ class Context:
 
                 sequences = synthetic_suite(n_sequences=self.n_synthetic)
             elif self.only_sequences is not None:
-                from nrmlc.benchmark import select_sequences
+                from nrmlc.results_layout import select_sequences
 
                 # Only the named folders are opened: the others' warnings are not this run's.
                 sequences = select_sequences(self.data_root, list(self.only_sequences))
@@ -249,6 +249,21 @@ def params_differences(params: TrackerParams, reference: TrackerParams | None = 
     mine, theirs = params.as_dict(), reference.as_dict()
     return {k: v for k, v in mine.items() if theirs.get(k) != v}
 
+
+def describe_params(params: TrackerParams) -> str:
+    """Which preset ``params`` are (the closest one) and what differs from it."""
+    name, changed = min(((name, params_differences(params, TrackerParams.preset(name))) for name in PRESETS),
+                        key=lambda pair: len(pair[1]))
+    text = f"the '{name}' preset" + (" (the paper as printed)" if name == "paper" else "")
+    if changed:
+        text += " except " + ", ".join(f"{k} = {v}" for k, v in sorted(changed.items()))
+    return text
+
+
+
+def section(title: str, stem: str, lines: list[str]) -> dict:
+    """A script's section of ``REPORT.md``: its title, its figure ``<stem>.png`` and its markdown lines."""
+    return {"title": title, "figures": [f"{stem}.png"], "markdown": "\n".join(lines)}
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """The options every experiment takes (``make figures`` passes them through)."""

@@ -98,19 +98,6 @@ def tracker_params(budget: Budget, context=None, **changes) -> TrackerParams:
     return params.replace(**changes) if changes else params
 
 
-def describe_params(params: TrackerParams) -> str:
-    """Which preset ``params`` are (the closest one) and what differs from it."""
-    from experiments.grid import params_differences
-    from nrmlc.tracker.params import PRESETS
-
-    name, changed = min(((name, params_differences(params, TrackerParams.preset(name))) for name in PRESETS),
-                        key=lambda pair: len(pair[1]))
-    text = f"the '{name}' preset" + (" (the paper as printed)" if name == "paper" else "")
-    if changed:
-        text += " except " + ", ".join(f"{k} = {v}" for k, v in sorted(changed.items()))
-    return text
-
-
 def limit(sequences: list, budget: Budget) -> list:
     return list(sequences) if budget.max_sequences is None else list(sequences)[: budget.max_sequences]
 

@@ -58,8 +58,6 @@ LIVE_PARAMETERS = {"KCF": {"detect_thresh": 0.0}}
 SHIPPED_TRACKERS = ("L1", "MIL", "IVT", "ASLA", "KCF")
 SHIPPED_SUBFOLDERS = ("", "sparsepack")
 
-#: A shipped file belongs to a sequence only if its first box overlaps ours this much.
-FIRST_BOX_MIN_IOU = 0.5
 
 
 def opencv_version() -> str:
@@ -286,7 +284,7 @@ def shipped_results(peer_root, sequence, trackers=SHIPPED_TRACKERS) -> Shipped:
         ``notes`` with the reason it was not used.
     """
     from nrmlc.data import read_box_file
-    from nrmlc.metrics import overlaps
+    from nrmlc.metrics import first_box_mismatch
 
     found = Shipped()
     if peer_root is None:
@@ -310,11 +308,10 @@ def shipped_results(peer_root, sequence, trackers=SHIPPED_TRACKERS) -> Shipped:
                 continue
             first = sequence.groundtruth[0]
             if np.isfinite(first).all():
-                iou = float(overlaps(boxes[0], first))
-                if not iou >= FIRST_BOX_MIN_IOU:
-                    found.notes.append(f"{tracker} on {sequence.name}: {where} starts at "
-                                       f"{np.round(boxes[0], 1).tolist()}, not at our initial box "
-                                       f"{np.round(first, 1).tolist()} (IoU {iou:.2f}; another version), not used")
+                mismatch = first_box_mismatch(boxes, first)
+                if mismatch:
+                    found.notes.append(f"{tracker} on {sequence.name}: {where} starts at {mismatch[0]}, not at our "
+                                       f"initial box {mismatch[1]} (IoU {mismatch[2]:.2f}; another version), not used")
                     continue
             found.results[tracker] = PeerResult(boxes, float("nan"), str(where))
             break  # the first fitting version wins; later folders hold other versions

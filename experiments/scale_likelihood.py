@@ -23,9 +23,8 @@ from typing import ClassVar
 import matplotlib.pyplot as plt
 import numpy as np
 
-from experiments.failure_mechanisms import ON_TARGET_IOU, blocks
-from experiments.grid import json_report, script_main
-from experiments.internals import describe_params
+from experiments.grid import describe_params, json_report, script_main
+from experiments.shared import ON_TARGET_IOU, blocks
 from experiments.tables import save_figure
 from nrmlc.runner import CachedJob, frames_tracked, sequence_identity
 from nrmlc.tracker.params import TrackerParams

@@ -20,21 +20,20 @@ import sys
 import matplotlib.pyplot as plt
 import numpy as np
 
-from experiments.grid import script_main
+from experiments.grid import describe_params, script_main
 from experiments.internals import (
-    LAMBDAS, PAPER_A_RANGE, PAPER_GRAM_BOUND, Budget, budget_for, collect_many, collections_for,
-    describe_params, dictionary_weights, limit, max_offdiag_row_sum, pooled, strictly_dd, sum_to_one_codes,
-    tracker_params,
+    LAMBDAS, PAPER_A_RANGE, PAPER_GRAM_BOUND, budget_for, collect_many, dictionary_weights, limit,
+    max_offdiag_row_sum, pooled, strictly_dd, sum_to_one_codes, tracker_params,
 )
+from experiments.shared import STATS_REAL_BUDGET as REAL_BUDGET
+from experiments.shared import STATS_SYNTHETIC_BUDGET as SYNTHETIC_BUDGET
+from experiments.shared import stats_runs as runs  # noqa: F401 (this script's runs(context))
 from experiments.tables import fmt, percentiles, save_figure, write_csv
 from nrmlc.io import write_json
 
 STEM = "stats_nonnegativity"
 SIZES = (5, 8, 10)
 BETAS = (0.1, 0.0)
-
-SYNTHETIC_BUDGET = Budget(max_frames=None, every=5, n_candidates=100)
-REAL_BUDGET = Budget(max_frames=100, every=5, n_candidates=100)
 
 
 def analyse(grams: np.ndarray, is_best: np.ndarray, lams=LAMBDAS, sizes=SIZES, betas=BETAS) -> list[dict]:
@@ -107,12 +106,6 @@ def tracker_agreement(collections: list[dict], grams: np.ndarray, p) -> dict:
     diff_c = max(float(np.abs(c - coefficients[:, j, : c.shape[1]]).max()) for j, c in enumerate(codes_by_size))
     w = dictionary_weights(grams[:, : p.k_max, : p.k_max], codes_by_size, p.beta)
     return {"lambda": p.lam, "beta": p.beta, "max_abs_diff_c": diff_c, "max_abs_diff_w": float(np.abs(w - weights).max())}
-
-
-def runs(context) -> list:
-    """The recorded internals this script reads (one collection per given sequence)."""
-    budget = budget_for(context, SYNTHETIC_BUDGET, REAL_BUDGET)
-    return collections_for(context, limit(context.sequences(), budget), budget)
 
 
 def collect(context) -> dict:

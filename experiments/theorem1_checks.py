@@ -23,10 +23,10 @@ from fractions import Fraction
 import matplotlib.pyplot as plt
 import numpy as np
 
-from experiments.grid import json_report, script_main
+from experiments.grid import describe_params, json_report, script_main
 from experiments.internals import (
     LAMBDAS, N_NEAREST, PAPER_A_RANGE, PAPER_GRAM_BOUND, Budget, budget_for, collect_many, collections_for,
-    describe_params, limit, max_offdiag_row_sum, pooled, strictly_dd, sum_to_one_codes, tracker_params,
+    limit, max_offdiag_row_sum, pooled, strictly_dd, sum_to_one_codes, tracker_params,
 )
 from experiments.tables import fmt, save_figure
 

@@ -54,13 +54,9 @@ import numpy as np
 
 from nrmlc import io
 from nrmlc.errors import DataError, ParameterError
+from nrmlc.results_layout import (LOCK_NAME, MANIFEST_NAME, SEEDS_FOLDER, SUMMARY_CSV, SUMMARY_JSON,
+                                   parse_names, result_file, select_sequences)
 
-MANIFEST_NAME = "benchmark.json"
-SUMMARY_CSV = "summary.csv"
-SUMMARY_JSON = "summary.json"
-SEEDS_FOLDER = "seeds"
-#: Held (flock) around every read-modify-write of the manifest; stays in the folder.
-LOCK_NAME = ".benchmark.lock"
 #: Per-run scores, in the order of the summary columns.
 SCORE_FIELDS = ("mean_overlap", "mean_center_error", "success_auc", "precision_20")
 _RANGE = re.compile(r"^(\d+)-(\d+)$")
@@ -87,61 +83,6 @@ def parse_seeds(text: str) -> tuple[int, ...]:
     return tuple(dict.fromkeys(seeds))  # in order, without repeats
 
 
-def parse_names(text: str | None) -> list[str] | None:
-    """``"Car4,Caviar1"`` -> ["Car4", "Caviar1"]; None stays None."""
-    if text is None:
-        return None
-    names = [n.strip() for n in text.split(",") if n.strip()]
-    if not names:
-        raise ParameterError(f"--sequences {text!r}: no sequence name given")
-    return names
-
-
-def _check_name(name: str, data_root) -> None:
-    """A ``--sequences`` entry names a sequence of the data root, never a path elsewhere."""
-    if not isinstance(name, str) or not name or name in (".", "..") or "/" in name or os.sep in name \
-            or (os.altsep and os.altsep in name) or "\0" in name:
-        raise ParameterError(f"--sequences {name!r}: give the name of a sequence of {data_root}, not a path")
-
-
-def select_sequences(data_root, names: list[str] | None = None) -> list:
-    """The sequences of ``data_root`` (all, or those named, in the order given; case-insensitive).
-
-    Raises
-    ------
-    DataError
-        For a name that is not a sequence of the root (the message lists them).
-    """
-    from nrmlc.data import list_sequences, open_sequence
-    from nrmlc.data.otb import check_unique_names
-
-    if names is not None:
-        for name in names:
-            _check_name(name, data_root)
-        # Open only the named folders (the others' warnings are not this run's business) ...
-        chosen = {}
-        for name in names:
-            try:
-                sequence = open_sequence(Path(data_root) / name)
-            except DataError:
-                break  # ... unless a name is not a folder as written: then look it up below
-            if sequence.name.lower() != name.lower():
-                break  # a multi-target folder ("Jog" is Jog-1): the full listing finds every collision
-            chosen.setdefault(sequence.name, sequence)
-        else:
-            check_unique_names(list(chosen.values()), data_root)
-            return list(chosen.values())
-    sequences = list_sequences(data_root)
-    if names is None:
-        return sequences
-    by_name = {s.name.lower(): s for s in sequences}
-    unknown = [n for n in names if n.lower() not in by_name]
-    if unknown:
-        raise DataError(f"{data_root}: no sequence {', '.join(unknown)} "
-                        f"(sequences: {', '.join(s.name for s in sequences)})")
-    return list({by_name[n.lower()].name: by_name[n.lower()] for n in names}.values())
-
-
 def _check_out_beside_inputs(out: Path, sequences) -> None:
     """Refuse an ``--out`` that is a sequence folder or inside one: its ``<Seq>.txt`` files would
     join that sequence (a sequence named ``groundtruth_rect`` would even replace its ground truth)."""
@@ -153,12 +94,6 @@ def _check_out_beside_inputs(out: Path, sequences) -> None:
         if target == folder or folder in target.parents:
             raise ParameterError(f"--out {out}: is inside the sequence folder {sequence.path}; write the results "
                                  f"elsewhere")
-
-
-def result_file(out: Path, name: str, seed: int, primary_seed: int) -> Path:
-    """Where the boxes of ``name`` with ``seed`` go (top level for the primary seed)."""
-    folder = out if seed == primary_seed else out / SEEDS_FOLDER / str(seed)
-    return folder / f"{name}.txt"
 
 
 def _number_or_none(value) -> bool:

@@ -17,11 +17,15 @@ from pathlib import Path
 
 
 def _cmd_evaluate(args: argparse.Namespace) -> int:
-    from nrmlc.compare import run_evaluate_file, run_evaluate_folders
+    import dataclasses
 
-    if args.data is not None:  # result folders of any number of trackers (nrmlc/compare.py)
-        return run_evaluate_folders(args)
-    return run_evaluate_file(args)
+    from nrmlc.compare import EvaluateOptions, run_evaluate_file, run_evaluate_folders
+
+    options = EvaluateOptions(**{f.name: (tuple(getattr(args, f.name)) if f.name in ("results", "name_map")
+                                          else getattr(args, f.name)) for f in dataclasses.fields(EvaluateOptions)})
+    if options.data is not None:  # result folders of any number of trackers (nrmlc/compare.py)
+        return run_evaluate_folders(options)
+    return run_evaluate_file(options)
 
 
 def _cmd_list(args: argparse.Namespace) -> int:

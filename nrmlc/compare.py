@@ -62,9 +62,9 @@ from pathlib import Path
 import numpy as np
 
 from nrmlc import io
-from nrmlc.benchmark import MANIFEST_NAME, SEEDS_FOLDER, parse_names, select_sequences
 from nrmlc.errors import DataError, ParameterError
 from nrmlc.otb_results import find_otb_result, is_otb_results_folder, select_trackers, sequence_key
+from nrmlc.results_layout import MANIFEST_NAME, SEEDS_FOLDER, parse_names, select_sequences
 
 #: How a missing prediction is scored, for ``--help`` and the table's footnote;
 #: it restates the "Missing predictions" paragraph of :mod:`nrmlc.metrics`.
@@ -77,8 +77,6 @@ MISSING_RULE = (
     "scored as it is (overlap 0, the error of its centre). Frame 1 (the given box) and frames without "
     "ground truth are not scored (nrmlc.metrics).")
 
-#: A result file is taken for a sequence only when its first box overlaps the initial box this much.
-FIRST_BOX_MIN_IOU = 0.5
 
 SCORE_NAMES = ("success_auc", "precision_20", "mean_overlap", "mean_center_error")
 
@@ -256,7 +254,7 @@ def find_result(folder, sequence, name_map=None, max_frames: int | None = None):
     """
     from nrmlc.data import read_box_file
     from nrmlc.geometry import usable_boxes
-    from nrmlc.metrics import overlaps
+    from nrmlc.metrics import first_box_mismatch
 
     folder = Path(folder)
     n_frames = len(sequence) if max_frames is None else min(len(sequence), max_frames)
@@ -269,13 +267,11 @@ def find_result(folder, sequence, name_map=None, max_frames: int | None = None):
         except DataError as exc:
             notes.append(f"{path}: not used, unreadable ({exc})")
             continue
-        if check_first and len(boxes) and np.isfinite(boxes[0]).all():
-            iou = float(overlaps(boxes[0], first))
-            if not iou >= FIRST_BOX_MIN_IOU:
-                notes.append(f"{path}: not used, its first box {np.round(boxes[0], 1).tolist()} is not "
-                             f"{sequence.name}'s initial box {np.round(first, 1).tolist()} (IoU {iou:.2f}; "
-                             f"results on another version of the sequence?)")
-                continue
+        mismatch = first_box_mismatch(boxes, first) if check_first and len(boxes) and np.isfinite(boxes[0]).all() else None
+        if mismatch:
+            notes.append(f"{path}: not used, its first box {mismatch[0]} is not {sequence.name}'s initial box "
+                         f"{mismatch[1]} (IoU {mismatch[2]:.2f}; results on another version of the sequence?)")
+            continue
         fitting.append((path, boxes))
     if not fitting:
         return None, None, notes
@@ -576,8 +572,6 @@ def format_scope(comparison: Comparison) -> str:
 
 def _primary_seed(folder) -> str:
     """The seed of a ``nrmlc benchmark`` folder's top-level files ("" if it does not say)."""
-    from nrmlc.benchmark import MANIFEST_NAME
-
     try:
         return str(json.loads((Path(folder) / MANIFEST_NAME).read_text())["primary_seed"])
     except (OSError, ValueError, KeyError, TypeError):
@@ -734,6 +728,30 @@ def write_csv(comparison: Comparison, path, attribute_rows=()) -> Path:
 OUTPUT_OPTIONS = ("--plot", "--csv", "--attribute-plot", "--speed-plot")
 
 
+
+@dataclass(frozen=True)
+class EvaluateOptions:
+    """The options of ``evaluate``, as given (``nrmlc.cli`` builds this from its command line)."""
+
+    results: tuple = ()
+    groundtruth: str | None = None
+    json: bool = False
+    include_first: bool = False
+    data: str | None = None
+    names: str | None = None
+    sequences: str | None = None
+    name_map: tuple = ()
+    otb_trackers: str | None = None
+    all_seeds: bool = False
+    common: bool = False
+    max_frames: int | None = None
+    attributes: str | None = None
+    attribute_plot: str | None = None
+    speed_plot: str | None = None
+    plot: str | None = None
+    csv: str | None = None
+
+
 def add_evaluate_arguments(parser: argparse.ArgumentParser) -> None:
     """The options of the folder form of ``evaluate`` (the single-file form's stay in nrmlc.cli)."""
     parser.description = (
@@ -784,7 +802,7 @@ def add_evaluate_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--csv", metavar="OUT.csv", help="write per-sequence and overall scores")
 
 
-def check_outputs(args: argparse.Namespace, inputs=(), input_folders=()) -> None:
+def check_outputs(args: EvaluateOptions, inputs=(), input_folders=()) -> None:
     """Refuse, before any work, an output that is an input, lies inside an input folder, or is given twice."""
     given = [(option, getattr(args, option[2:].replace("-", "_"), None)) for option in OUTPUT_OPTIONS]
     given = [(option, path) for option, path in given if path is not None]
@@ -827,7 +845,7 @@ def _file_boxes(path) -> np.ndarray:
     return boxes
 
 
-def run_evaluate_file(args: argparse.Namespace) -> int:
+def run_evaluate_file(args: EvaluateOptions) -> int:
     """``evaluate --results R.txt|R.mat --groundtruth G.txt``: the scores, each with the frames behind it."""
     from nrmlc.data import read_box_file
     from nrmlc.metrics import evaluate
@@ -887,7 +905,7 @@ def run_evaluate_file(args: argparse.Namespace) -> int:
     return 0
 
 
-def run_evaluate_folders(args: argparse.Namespace) -> int:
+def run_evaluate_folders(args: EvaluateOptions) -> int:
     """``evaluate --results DIR [DIR ...] --data DATA ...``: table on stdout, notes on stderr."""
     if args.groundtruth:
         raise ParameterError("--groundtruth is for one result file; with --data give result folders")

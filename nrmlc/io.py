@@ -106,11 +106,20 @@ def commit(tmp: str | os.PathLike, path: str | os.PathLike) -> Path:
     """
     try:
         _fsync_file(tmp, path)
+    except BaseException:
+        discard(tmp)
+        raise
+    return _replace(tmp, path)
+
+
+def _replace(tmp: str | os.PathLike, path: str | os.PathLike) -> Path:
+    """Rename the fsynced ``tmp`` over ``path``'s target (``tmp`` is removed if that fails)."""
+    try:
         target = _target(path)
-        try:
-            os.replace(tmp, target)
-        except OSError as exc:
-            raise _cannot_write(path, exc) from None
+        os.replace(tmp, target)
+    except OSError as exc:
+        discard(tmp)
+        raise _cannot_write(path, exc) from None
     except BaseException:
         discard(tmp)
         raise
@@ -153,18 +162,7 @@ def _stage(path: str | os.PathLike, write: Callable[[Any], None], mode: str) -> 
 
 
 def _atomic(path: str | os.PathLike, write: Callable[[Any], None], mode: str) -> Path:
-    tmp = _stage(path, write, mode)
-    target = _target(path)
-    try:
-        os.replace(tmp, target)
-    except OSError as exc:
-        discard(tmp)
-        raise _cannot_write(path, exc) from None
-    except BaseException:
-        discard(tmp)
-        raise
-    _fsync_folder(target.parent)
-    return Path(path)
+    return _replace(_stage(path, write, mode), path)
 
 
 def _keep_old(target: Path) -> Path | None:

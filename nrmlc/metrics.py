@@ -189,6 +189,20 @@ def overlaps(predicted, groundtruth) -> np.ndarray:
     return np.where(nan, np.nan, iou)
 
 
+#: A result belongs to a sequence only when its first box overlaps the sequence's box on that frame this much.
+FIRST_BOX_MIN_IOU = 0.5
+
+
+def first_box_mismatch(boxes, reference) -> tuple[list, list, float] | None:
+    """None when the first of ``boxes`` is the sequence's ``reference`` box (IoU >= :data:`FIRST_BOX_MIN_IOU`);
+    else (that first box, the reference, rounded to 0.1 px, and their IoU) for the note that refuses the result
+    (results on another version of the sequence)."""
+    iou = float(overlaps(boxes[0], reference))
+    if iou >= FIRST_BOX_MIN_IOU:
+        return None
+    return np.round(boxes[0], 1).tolist(), np.round(reference, 1).tolist(), iou
+
+
 def _thresholds(thresholds, default: np.ndarray, name: str) -> np.ndarray:
     if thresholds is None:
         return default
@@ -424,14 +438,8 @@ def evaluate_files(
     skip_first : bool, default True
         Do not evaluate frame 0.
 
-    Returns
-    -------
-    Evaluation
-
-    Raises
-    ------
-    DataError
-        On an unreadable file, or when no frame is left to evaluate.
+    Returns the :class:`Evaluation`, as :func:`evaluate` does; raises :class:`DataError` on an
+    unreadable file, or when no frame is left to evaluate.
     """
     predicted = read_box_file(result_path, predictions=True)
     groundtruth = read_box_file(groundtruth_path)

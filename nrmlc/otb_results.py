@@ -61,8 +61,6 @@ class UnsupportedResultType(DataError):
     """A result file whose ``type`` this reader does not convert (refused, never scored as failures)."""
 
 
-#: A first box below this IoU with the sequence's box on that frame: the file is not used.
-FIRST_BOX_MIN_IOU = 0.5
 
 # "Skating2.1", "Skating2_1", "jogging-1": a name, one separator, a target number.
 _TARGET = re.compile(r"^(.+?)[._-](\d+)$")
@@ -398,7 +396,7 @@ def find_otb_result(folder, tracker: str, sequence, max_frames: int | None = Non
         Files not used and why; frames the file does not cover.
     """
     from nrmlc.geometry import usable_boxes
-    from nrmlc.metrics import overlaps
+    from nrmlc.metrics import first_box_mismatch
 
     n_sequence = len(sequence)
     n_frames = n_sequence if max_frames is None else min(n_sequence, max_frames)
@@ -419,13 +417,13 @@ def find_otb_result(folder, tracker: str, sequence, max_frames: int | None = Non
             notes.append(f"{path}: not used, it starts at frame {offset + 1} of {sequence.name}'s {n_sequence}")
             continue
         first = truth[offset]
-        if bool(usable_boxes(first[None, :])[0]) and np.isfinite(boxes[0]).all():
-            iou = float(overlaps(boxes[0], first))
-            if not iou >= FIRST_BOX_MIN_IOU:
-                notes.append(f"{path}: not used, its first box {np.round(boxes[0], 1).tolist()} is not "
-                             f"{sequence.name}'s box on frame {offset + 1} {np.round(first, 1).tolist()} "
-                             f"(IoU {iou:.2f}; results on another version of the sequence?)")
-                continue
+        mismatch = first_box_mismatch(boxes, first) \
+            if bool(usable_boxes(first[None, :])[0]) and np.isfinite(boxes[0]).all() else None
+        if mismatch:
+            notes.append(f"{path}: not used, its first box {mismatch[0]} is not {sequence.name}'s box on frame "
+                         f"{offset + 1} {mismatch[1]} (IoU {mismatch[2]:.2f}; results on another version of the "
+                         f"sequence?)")
+            continue
         aligned = np.full((n_frames, 4), np.nan)
         covered = boxes[: max(0, n_frames - offset)]
         aligned[offset: offset + len(covered)] = covered

@@ -176,7 +176,8 @@ def test_runs_match_what_the_scripts_read(tiny_context):
 
 
 def test_paper_claims_use_the_paper_preset(tiny_context):
-    from experiments.internals import describe_params, tracker_params
+    from experiments.grid import describe_params
+    from experiments.internals import tracker_params
     from nrmlc.tracker.params import TrackerParams
 
     params = tracker_params(TINY, tiny_context)

@@ -15,7 +15,8 @@ import pytest
 from nrmlc.attributes import ATTRIBUTES, read_attribute_file, read_attributes
 from nrmlc.cli import main
 from nrmlc.compare import compare
-from nrmlc.data import open_sequence, synthetic_suite, write_otb_sequence
+from nrmlc.data import open_sequence
+from nrmlc.testing.scenes import write_small_suite
 from nrmlc.errors import DataError
 from nrmlc.metrics import evaluate
 
@@ -33,10 +34,7 @@ def write_boxes(path: Path, boxes) -> None:
 
 @pytest.fixture(scope="module")
 def data_root(tmp_path_factory) -> Path:
-    root = tmp_path_factory.mktemp("data")
-    for sequence in synthetic_suite(n_frames=10, size=(72, 96), n_sequences=3, seed=0):
-        write_otb_sequence(sequence, root / sequence.name)
-    return root
+    return write_small_suite(tmp_path_factory.mktemp("data"), n_sequences=3)
 
 
 @pytest.fixture(scope="module")

@@ -136,24 +136,26 @@ def test_per_sequence_motion_runs_and_shares_the_table_runs(grid, monkeypatch):
     assert "| synth-01 |" in result["markdown"]
 
 
-def test_recentring_free_column_is_the_table_run(grid):
-    """The free column reads Table II's own default run from the cache; the re-centred ones are new runs."""
-    tmp, _, _ = grid
-    data = json.loads((tmp / "figures" / "ablation_oracle_recentring.json").read_text())
+def _one_row_and_table_overlap(tmp, stem: str):
+    """A script's JSON, its one row, and Table II's overlap of the default on synth-01."""
+    data = json.loads((tmp / "figures" / f"{stem}.json").read_text())
     (row,) = data["rows"]
     table = json.loads((tmp / "figures" / "table1_table2_accuracy.json").read_text())
-    assert row["free"] == pytest.approx(table["cells"]["synth-01"]["Ours"]["overlap"])
+    return data, row, table["cells"]["synth-01"]["Ours"]["overlap"]
+
+
+def test_recentring_free_column_is_the_table_run(grid):
+    """The free column reads Table II's own default run from the cache; the re-centred ones are new runs."""
+    data, row, table_overlap = _one_row_and_table_overlap(grid[0], "ablation_oracle_recentring")
+    assert row["free"] == pytest.approx(table_overlap)
     assert all(0 <= row[f"R = {period}"] <= 1 for period in (1, 10, 50))
     assert data["averages"]["other sequences"]["free"] == pytest.approx(row["free"])
 
 
 def test_oracle_gate_rule_column_is_the_table_run(grid):
     """The rule column reads Table II's own default run from the cache; the gated ones are new runs."""
-    tmp, _, _ = grid
-    data = json.loads((tmp / "figures" / "ablation_oracle_gate.json").read_text())
-    (row,) = data["rows"]
-    table = json.loads((tmp / "figures" / "table1_table2_accuracy.json").read_text())
-    assert row["rule"] == pytest.approx(table["cells"]["synth-01"]["Ours"]["overlap"])
+    data, row, table_overlap = _one_row_and_table_overlap(grid[0], "ablation_oracle_gate")
+    assert row["rule"] == pytest.approx(table_overlap)
     assert all(0 <= row[gate] <= 1 and 0 <= row[f"{gate} updates"] <= 100 for gate in data["gates"])
 
 

@@ -23,7 +23,8 @@ import pytest
 import scipy.io
 
 from nrmlc import io
-from nrmlc.benchmark import MANIFEST_NAME, run_benchmark
+from nrmlc.benchmark import run_benchmark
+from nrmlc.results_layout import MANIFEST_NAME
 from nrmlc.data import list_sequences, open_sequence, read_box_file, synthetic_suite, write_otb_sequence
 from nrmlc.data import fingerprint
 from nrmlc.errors import DataError, OutputError, ParameterError

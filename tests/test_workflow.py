@@ -15,7 +15,8 @@ import pytest
 from nrmlc.benchmark import parse_seeds
 from nrmlc.cli import main
 from nrmlc.compare import compare
-from nrmlc.data import open_sequence, read_box_file, synthetic_suite, write_otb_sequence
+from nrmlc.data import open_sequence, read_box_file
+from nrmlc.testing.scenes import write_small_suite
 from nrmlc.data.video_file import VideoFileSequence
 from nrmlc.errors import DataError, ParameterError
 from nrmlc.metrics import evaluate, overlaps
@@ -176,10 +177,7 @@ def test_video_sequence_pickles_for_worker_processes(tmp_path):
 # ------------------------------------------------------------------ benchmark
 @pytest.fixture(scope="module")
 def data_root(tmp_path_factory) -> Path:
-    root = tmp_path_factory.mktemp("data")
-    for sequence in synthetic_suite(n_frames=10, size=(72, 96), n_sequences=2, seed=0):
-        write_otb_sequence(sequence, root / sequence.name)
-    return root
+    return write_small_suite(tmp_path_factory.mktemp("data"), n_sequences=2)
 
 
 def _benchmark(data_root, out, cache, capsys, *extra):

@@ -31,3 +31,12 @@ def jump_scene(jump: float = 16, n_frames: int = 12, jump_frame: int = 4) -> tup
         frames.append(frame.astype(np.uint8))
         boxes.append((x + 1, 41, 24, 24))
     return frames, np.array(boxes, dtype=np.float64)
+
+
+def write_small_suite(root, n_sequences: int):
+    """``n_sequences`` synthetic sequences of 10 frames at 96x72 as OTB folders under ``root`` (a data root)."""
+    from nrmlc.data import synthetic_suite, write_otb_sequence
+
+    for sequence in synthetic_suite(n_frames=10, size=(72, 96), n_sequences=n_sequences, seed=0):
+        write_otb_sequence(sequence, root / sequence.name)
+    return root
