@@ -20,14 +20,12 @@ data), the ablation seeds. Outputs ``ablation_oracle_gate.{png,csv,json}``.
 """
 from __future__ import annotations
 
-import functools
-import sys
 from dataclasses import dataclass
 from typing import ClassVar
 
 import numpy as np
 
-from experiments.grid import score, script_main
+from experiments.grid import score, script_entry
 from experiments.shared import blocks
 from experiments.tables import fmt, mean_std, save_figure, write_csv
 from nrmlc import io
@@ -197,7 +195,4 @@ def report(context, data: dict) -> dict:
 
 
 #: ``python -m experiments.<script> [options]``: this script alone, with the options of ``make figures``.
-main = functools.partial(script_main, __name__)
-
-if __name__ == "__main__":
-    sys.exit(main())
+main = script_entry(__name__)

@@ -15,15 +15,13 @@ first frame's. The probing never changes the tracker's boxes (tested).
 """
 from __future__ import annotations
 
-import functools
-import sys
 from dataclasses import dataclass
 from typing import ClassVar
 
 import matplotlib.pyplot as plt
 import numpy as np
 
-from experiments.grid import describe_params, json_report, script_main
+from experiments.grid import describe_params, json_report, script_entry
 from experiments.shared import ON_TARGET_IOU, blocks
 from experiments.tables import save_figure
 from nrmlc.runner import CachedJob, frames_tracked, sequence_identity
@@ -292,7 +290,4 @@ def _markdown(result: dict) -> str:
 
 
 #: ``python -m experiments.<script> [options]``: this script alone, with the options of ``make figures``.
-main = functools.partial(script_main, __name__)
-
-if __name__ == "__main__":
-    sys.exit(main())
+main = script_entry(__name__)
