@@ -31,10 +31,9 @@ from experiments.tables import fmt, mean_std, save_figure, write_csv
 from nrmlc import io
 from nrmlc.geometry import usable_boxes
 from nrmlc.metrics import overlaps
-from nrmlc.runner import CachedJob, sequence_identity
+from nrmlc.runner import TrackerJob, sequence_identity
 from nrmlc.tracker.algorithm import NRMLCTracker
 from nrmlc.tracker.loop import track_sequence
-from nrmlc.tracker.params import TrackerParams
 
 STEM = "ablation_oracle_gate"
 TITLE = "The positive update gated by the ground truth: does a better update rule close the gap?"
@@ -76,22 +75,15 @@ class OracleGateTracker(NRMLCTracker):
 
 
 @dataclass(frozen=True)
-class OracleGateRun(CachedJob):
+class OracleGateRun(TrackerJob):
     """One run of :class:`OracleGateTracker`: a job of :class:`nrmlc.runner.RunCache`, stored under
     ``<cache>/oracle_gate/``."""
 
-    sequence: object
-    params: TrackerParams
-    seed: int
     gate: str
     n_frames: int | None = None
 
     folder: ClassVar[str] = "oracle_gate"
-    uses_kernels: ClassVar[bool] = True
-
-    @property
-    def label(self) -> str:
-        return f"oracle gate ({self.gate}) on {self.sequence.name}"
+    label_template: ClassVar[str] = "oracle gate ({job.gate}) on {job.sequence.name}"
 
     def description(self, version: str) -> dict:
         return {"sequence": sequence_identity(self.sequence), "params": self.params.as_dict(), "seed": int(self.seed),

@@ -24,8 +24,7 @@ import numpy as np
 from experiments.grid import describe_params, json_report, script_entry
 from experiments.shared import ON_TARGET_IOU, blocks
 from experiments.tables import save_figure
-from nrmlc.runner import CachedJob, frames_tracked, sequence_identity
-from nrmlc.tracker.params import TrackerParams
+from nrmlc.runner import TrackerJob, frames_tracked, sequence_identity
 
 STEM = "scale_likelihood"
 TITLE = "Scale drift: the likelihood across scale at the ground truth's centre"
@@ -43,7 +42,7 @@ PROFILE_VERSION = 1
 
 
 @dataclass(frozen=True)
-class ScaleProfile(CachedJob):
+class ScaleProfile(TrackerJob):
     """Track a sequence and, at each annotated frame, code the ground truth at :data:`SCALES`.
 
     A job of :class:`nrmlc.runner.RunCache` (stored under ``<cache>/analysis/``), keyed by
@@ -51,17 +50,10 @@ class ScaleProfile(CachedJob):
     code version.
     """
 
-    sequence: object
-    params: TrackerParams
-    seed: int
     max_frames: int | None = None
 
     folder: ClassVar[str] = "analysis"
-    uses_kernels: ClassVar[bool] = True
-
-    @property
-    def label(self) -> str:
-        return f"scale profile of {self.sequence.name}"
+    label_template: ClassVar[str] = "scale profile of {job.sequence.name}"
 
     def frame_cap(self) -> int | None:
         return self.max_frames
