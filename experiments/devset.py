@@ -32,7 +32,7 @@ from pathlib import Path
 import numpy as np
 
 from experiments.grid import score, specs_for
-from experiments.sequence_sets import ADOPTION_RULE, DEVELOPMENT_A, DEVELOPMENT_B, DEVELOPMENT_SEQUENCES
+from experiments.sequence_sets import ADOPTION_RULE, DEVELOPMENT_A, DEVELOPMENT_B, DEVELOPMENT_SEQUENCES, MIN_SEEDS
 from nrmlc import io
 from nrmlc.config import data_root_from_env
 from nrmlc.data.synthetic import SyntheticSequence
@@ -284,8 +284,8 @@ def adopted(differences: dict) -> tuple[bool, str]:
     a, b, synthetic = (differences.get(k) for k in ("A", "B", "synthetic suite"))
     if a is None or b is None:
         return False, "needs both halves"
-    if len(a["per_seed"]) < 3:
-        return False, f"needs at least 3 seeds (has {len(a['per_seed'])})"
+    if len(a["per_seed"]) < MIN_SEEDS:
+        return False, f"needs at least {MIN_SEEDS} seeds (has {len(a['per_seed'])})"
     if not a["mean"] > a["standard_error"]:
         return False, f"A: {a['mean']:+.3f} is not beyond its error {a['standard_error']:.3f}"
     if not b["mean"] > 0:
@@ -371,7 +371,7 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--data", default=None,
                         help="data root(s), joined by ':' (default: $NRMLC_DATA, else ../shared/data/sequences, "
                              "and $NRMLC_MORE_DATA, else ../devdata/sequences, where they exist)")
-    parser.add_argument("--seeds", default="0-4", help="seeds, e.g. 0-4 or 0,2 (default 0-4)")
+    parser.add_argument("--seeds", default="0-4", help="seeds, e.g. 0-4 or 0,2; a number alone is that one seed (default 0-4)")
     parser.add_argument("--preset", default="default", help="preset of the configuration (default: default)")
     parser.add_argument("--param", action="append", default=[], metavar="NAME=VALUE",
                         help="change a parameter of the configuration (repeatable)")
@@ -430,10 +430,19 @@ def format_differences(differences: dict, seeds) -> list[str]:
     return lines
 
 
+def warn_few_seeds(text: str, seeds) -> None:
+    """One warning line when ``--seeds`` names fewer seeds than :func:`adopted` needs: ``--seeds 3``
+    is seed 3 alone, not three seeds."""
+    if len(seeds) < MIN_SEEDS:
+        print(f"warning: --seeds {text} is {len(seeds)} seed(s) ({', '.join(map(str, seeds))}); the adoption "
+              f"rule needs at least {MIN_SEEDS} (a range such as --seeds 0-{MIN_SEEDS - 1})", file=sys.stderr)
+
+
 def main(argv=None) -> int:
     args = build_parser().parse_args(argv)
     try:
         seeds = parse_seeds(args.seeds)
+        warn_few_seeds(args.seeds, seeds)
         config = configuration(args.preset, args.param)
         baseline = configuration(args.baseline_preset, args.baseline_param)
         roots = parse_roots(args.data)

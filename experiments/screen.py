@@ -22,7 +22,7 @@ import sys
 import numpy as np
 
 from experiments.devset import (adopted, collapsed, development_sequences, differences_by_group, groups_of,
-                                overlaps_of, parse_roots, run_measures, scales_of, selected_names)
+                                overlaps_of, parse_roots, run_measures, scales_of, selected_names, warn_few_seeds)
 from experiments.grid import specs_for
 from nrmlc import io
 from nrmlc.benchmark import parse_seeds
@@ -104,7 +104,7 @@ def format_screen(rows: list[dict]) -> str:
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--data", default=None, help="data root(s) joined by ':' (as experiments.devset)")
-    parser.add_argument("--seeds", default="0-2")
+    parser.add_argument("--seeds", default="0-2", help="seeds, e.g. 0-2 or 0,3,5; a number alone is that one seed")
     parser.add_argument("--synthetic", type=int, default=6, metavar="N")
     parser.add_argument("--half", choices=("A", "B", "all"), default="all")
     parser.add_argument("--sequences", default=None, help="a subset of the development targets ('': none)")
@@ -124,6 +124,7 @@ def main(argv=None) -> int:
     args = parser.parse_args(argv)
     try:
         seeds = parse_seeds(args.seeds)
+        warn_few_seeds(args.seeds, seeds)
         baseline = parse_variant("baseline", args.baseline, args.baseline_preset)
         variants = [(name, parse_variant(name, text, args.baseline_preset)) for name, text in args.variant]
         names = selected_names(args.half, args.sequences)

@@ -46,8 +46,11 @@ DEVELOPMENT_A = ("Bird1", "BlurFace", "Boy", "Car1", "Crossing", "Dog", "DragonB
 DEVELOPMENT_B = ("Basketball", "BlurBody", "BlurCar2", "BlurOwl", "Car11", "Couple", "Diving", "Freeman1", "Ironman",
                  "Jogging-1", "Jogging-2", "Liquor", "Man", "Matrix", "Singer2", "Suv", "Toy", "Walking2")
 
+#: The fewest seeds a paired gain is judged on.
+MIN_SEEDS = 3
+
 #: The rule every default is adopted by (:func:`experiments.devset.adopted` applies it).
-ADOPTION_RULE = ("a change is adopted only when its paired gain over at least 3 seeds exceeds its standard "
+ADOPTION_RULE = (f"a change is adopted only when its paired gain over at least {MIN_SEEDS} seeds exceeds its standard "
                  "error on half A, is positive on half B, and does not lose on the synthetic suite beyond "
                  "its standard error")
 

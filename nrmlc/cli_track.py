@@ -27,15 +27,15 @@ def add_track_command(commands) -> None:
     track.add_argument("--out", required=True, metavar="RESULT.txt", help="output boxes, one x,y,w,h line per frame")
     track.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
     track.add_argument("--particles", type=int, help="number of particles (default: the preset's)")
-    track.add_argument("--coding", choices=("regularized", "constrained", "plain"), help="coding mode (default regularized)")
+    from nrmlc.tracker.params import PRESETS, TrackerParams
+
+    track.add_argument("--coding", choices=TrackerParams.choices("coding"), help="coding mode (default regularized)")
     track.add_argument("--lambda", dest="lam", type=float, help="l2 weight on the coefficients (default 1)")
     track.add_argument("--beta", type=float, help="l2 weight on the dictionary weights (default 0.1)")
     track.add_argument("--frames", type=int, help="track only the first N frames")
     track.add_argument("--target", type=int, help="target number in a multi-target folder (groundtruth_rect.N.txt)")
     track.add_argument("--init-box", metavar="X,Y,W,H",
                        help="initial box (default: the first ground-truth box); may start with a minus sign")
-    from nrmlc.tracker.params import PRESETS
-
     track.add_argument("--preset", default="default", choices=tuple(PRESETS),
                        help="parameter set: 'default' (chosen on the development sequences) or 'paper' "
                             "(the paper as printed); --param and the options above change single values")

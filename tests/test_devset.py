@@ -225,3 +225,12 @@ def test_attribute_means_and_early_losses_by_hand():
     measures = {"a": {"lost_at": [0.01, 0.03, None]}, "b": {"lost_at": [0.01, None, 0.5]}}
     # Lost within the first 5% in most seeds: a (2 of 3), not b (1 of 3).
     assert devset.early_losses(measures, ["a", "b"]) == ["a"]
+
+
+def test_fewer_seeds_than_the_rule_needs_are_warned_in_one_line(capsys):
+    # "--seeds 3" is seed 3 alone, easily meant as three seeds.
+    devset.warn_few_seeds("3", (3,))
+    line = capsys.readouterr().err.strip()
+    assert line.count("\n") == 0 and "--seeds 3 is 1 seed(s) (3)" in line and "at least 3" in line
+    devset.warn_few_seeds("0-2", (0, 1, 2))
+    assert capsys.readouterr().err == ""
