@@ -20,23 +20,20 @@ data), the ablation seeds. Outputs ``ablation_oracle_gate.{png,csv,json}``.
 """
 from __future__ import annotations
 
-import functools
-import sys
 from dataclasses import dataclass
 from typing import ClassVar
 
 import numpy as np
 
-from experiments.grid import score, script_main
+from experiments.grid import score, script_entry
 from experiments.shared import blocks
 from experiments.tables import fmt, mean_std, save_figure, write_csv
 from nrmlc import io
 from nrmlc.geometry import usable_boxes
 from nrmlc.metrics import overlaps
-from nrmlc.runner import CachedJob, sequence_identity
+from nrmlc.runner import TrackerJob, sequence_identity
 from nrmlc.tracker.algorithm import NRMLCTracker
 from nrmlc.tracker.loop import track_sequence
-from nrmlc.tracker.params import TrackerParams
 
 STEM = "ablation_oracle_gate"
 TITLE = "The positive update gated by the ground truth: does a better update rule close the gap?"
@@ -78,22 +75,15 @@ class OracleGateTracker(NRMLCTracker):
 
 
 @dataclass(frozen=True)
-class OracleGateRun(CachedJob):
+class OracleGateRun(TrackerJob):
     """One run of :class:`OracleGateTracker`: a job of :class:`nrmlc.runner.RunCache`, stored under
     ``<cache>/oracle_gate/``."""
 
-    sequence: object
-    params: TrackerParams
-    seed: int
     gate: str
     n_frames: int | None = None
 
     folder: ClassVar[str] = "oracle_gate"
-    uses_kernels: ClassVar[bool] = True
-
-    @property
-    def label(self) -> str:
-        return f"oracle gate ({self.gate}) on {self.sequence.name}"
+    label_template: ClassVar[str] = "oracle gate ({job.gate}) on {job.sequence.name}"
 
     def description(self, version: str) -> dict:
         return {"sequence": sequence_identity(self.sequence), "params": self.params.as_dict(), "seed": int(self.seed),
@@ -197,7 +187,4 @@ def report(context, data: dict) -> dict:
 
 
 #: ``python -m experiments.<script> [options]``: this script alone, with the options of ``make figures``.
-main = functools.partial(script_main, __name__)
-
-if __name__ == "__main__":
-    sys.exit(main())
+main = script_entry(__name__)

@@ -21,14 +21,12 @@ Outputs ``figures/ablation_oracle_recentring.{png,csv,json}``.
 """
 from __future__ import annotations
 
-import functools
 import dataclasses
-import sys
 
 import numpy as np
 
 from experiments import paper_numbers as paper
-from experiments.grid import script_main, section
+from experiments.grid import script_entry, section
 from experiments.sequence_sets import paper_name
 from experiments.tables import fmt, mean_std, save_figure, write_csv
 from nrmlc import io
@@ -138,7 +136,4 @@ def report(context, data: dict) -> dict:
 
 
 #: ``python -m experiments.<script> [options]``: this script alone, with the options of ``make figures``.
-main = functools.partial(script_main, __name__)
-
-if __name__ == "__main__":
-    sys.exit(main())
+main = script_entry(__name__)

@@ -41,13 +41,11 @@ occluded. Outputs ``ablations.{png,csv,json}``.
 from __future__ import annotations
 
 import dataclasses
-import functools
-import sys
 
 import numpy as np
 
 from experiments import paper_numbers as paper
-from experiments.grid import params_differences, score, script_main
+from experiments.grid import params_differences, score, script_entry
 from experiments.sequence_sets import paper_name
 from experiments.shared import TRIAL_VALUES, plain_params
 from experiments.tables import fmt, mean_std, save_figure, write_csv
@@ -299,7 +297,4 @@ def report(context, data: dict) -> dict:
 
 
 #: ``python -m experiments.<script> [options]``: this script alone, with the options of ``make figures``.
-main = functools.partial(script_main, __name__)
-
-if __name__ == "__main__":
-    sys.exit(main())
+main = script_entry(__name__)

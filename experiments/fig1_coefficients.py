@@ -15,14 +15,12 @@ Runs go through the shared run cache (``context.run``).
 """
 from __future__ import annotations
 
-import functools
-import sys
 
 import matplotlib.pyplot as plt
 import numpy as np
 from matplotlib.patches import Rectangle
 
-from experiments.grid import json_report, script_main
+from experiments.grid import json_report, script_entry
 from experiments.grid import describe_params
 from experiments.internals import Budget, budget_for, tracker_params
 from experiments.tables import save_figure
@@ -241,7 +239,4 @@ def _markdown(result) -> str:
 
 
 #: ``python -m experiments.<script> [options]``: this script alone, with the options of ``make figures``.
-main = functools.partial(script_main, __name__)
-
-if __name__ == "__main__":
-    sys.exit(main())
+main = script_entry(__name__)

@@ -12,13 +12,11 @@ Data: the same recorded frames as :mod:`experiments.stats_nonnegativity`
 """
 from __future__ import annotations
 
-import functools
-import sys
 
 import matplotlib.pyplot as plt
 import numpy as np
 
-from experiments.grid import describe_params, json_report, script_main
+from experiments.grid import describe_params, json_report, script_entry
 from experiments.shared import stats_runs
 from experiments.tables import save_figure
 
@@ -138,7 +136,4 @@ def _markdown(result, budget) -> str:
 
 
 #: ``python -m experiments.<script> [options]``: this script alone, with the options of ``make figures``.
-main = functools.partial(script_main, __name__)
-
-if __name__ == "__main__":
-    sys.exit(main())
+main = script_entry(__name__)

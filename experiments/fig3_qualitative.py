@@ -12,13 +12,11 @@ numbers and every box drawn).
 """
 from __future__ import annotations
 
-import functools
-import sys
 
 import numpy as np
 
 from experiments import peers
-from experiments.grid import script_main, section
+from experiments.grid import script_entry, section
 from experiments.sequence_sets import paper_name
 from experiments.tables import save_figure
 from nrmlc import io
@@ -149,7 +147,4 @@ def report(context, data: dict) -> dict:
 
 
 #: ``python -m experiments.<script> [options]``: this script alone, with the options of ``make figures``.
-main = functools.partial(script_main, __name__)
-
-if __name__ == "__main__":
-    sys.exit(main())
+main = script_entry(__name__)

@@ -13,13 +13,11 @@ shown as mean ± std over ``context.sweep_seeds``. Outputs
 """
 from __future__ import annotations
 
-import functools
-import sys
 
 import numpy as np
 
 from experiments import paper_numbers as paper
-from experiments.grid import score, script_main, section
+from experiments.grid import score, script_entry, section
 from experiments.sequence_sets import paper_name
 from experiments.shared import plain_params
 from experiments.tables import fmt, mean_std, save_figure, write_csv
@@ -136,7 +134,4 @@ def report(context, data: dict) -> dict:
 
 
 #: ``python -m experiments.<script> [options]``: this script alone, with the options of ``make figures``.
-main = functools.partial(script_main, __name__)
-
-if __name__ == "__main__":
-    sys.exit(main())
+main = script_entry(__name__)

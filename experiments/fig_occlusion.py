@@ -10,14 +10,12 @@ frames vs the other frames. Runs go through the shared run cache.
 """
 from __future__ import annotations
 
-import functools
-import sys
 
 import matplotlib.pyplot as plt
 import numpy as np
 from matplotlib.patches import Patch, Rectangle
 
-from experiments.grid import json_report, script_main
+from experiments.grid import json_report, script_entry
 from experiments.grid import describe_params
 from experiments.internals import Budget, budget_for, tracker_params
 from experiments.tables import save_figure
@@ -274,7 +272,4 @@ def _markdown(result, title) -> str:
 
 
 #: ``python -m experiments.<script> [options]``: this script alone, with the options of ``make figures``.
-main = functools.partial(script_main, __name__)
-
-if __name__ == "__main__":
-    sys.exit(main())
+main = script_entry(__name__)

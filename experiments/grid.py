@@ -10,7 +10,7 @@ Every script in :data:`experiments.run_all.SCRIPTS` defines
 - ``plot(data, path)``: the figure ``<STEM>.png``;
 - ``report(context, data) -> section``: writes ``<STEM>.csv/.json`` and returns
   its section of ``REPORT.md`` (``title``, ``figures``, ``markdown``);
-- ``main(argv=None)`` (``functools.partial(script_main, __name__)``), so that
+- ``main(argv=None)`` (``main = script_entry(__name__)``), so that
   ``python -m experiments.fig4_lambda_sweep --data ../shared/data/sequences``
   works alone, with the options of ``make figures``.
 
@@ -19,6 +19,7 @@ Every script in :data:`experiments.run_all.SCRIPTS` defines
 from __future__ import annotations
 
 import argparse
+import functools
 import sys
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -384,3 +385,12 @@ def script_main(name: str, argv=None) -> int:
         return 2
     print(run_script(module, context)["markdown"])
     return 0
+
+
+def script_entry(name: str):
+    """A script's ``main`` (``main = script_entry(__name__)``, its last line): :func:`script_main`
+    for that script; run at once, its status the exit status, when the script is ``__main__``."""
+    main = functools.partial(script_main, name)
+    if name == "__main__":
+        sys.exit(main())
+    return main

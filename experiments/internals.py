@@ -26,7 +26,7 @@ from typing import ClassVar
 
 import numpy as np
 
-from nrmlc.runner import CachedJob, sequence_identity
+from nrmlc.runner import TrackerJob, sequence_identity
 from nrmlc.tracker.params import TrackerParams
 
 #: Bump when the recorded content changes (invalidates the collection cache).
@@ -179,7 +179,7 @@ def _stack_records(records: list[dict]) -> dict:
 
 
 @dataclass(frozen=True)
-class Collection(CachedJob):
+class Collection(TrackerJob):
     """Track a sequence and record the coding step's internals at sampled frames.
 
     A job of :class:`nrmlc.runner.RunCache` (stored under ``<cache>/analysis/``),
@@ -187,17 +187,10 @@ class Collection(CachedJob):
     collector version and the code version.
     """
 
-    sequence: object
-    params: TrackerParams
-    seed: int
     budget: Budget
 
     folder: ClassVar[str] = "analysis"
-    uses_kernels: ClassVar[bool] = True
-
-    @property
-    def label(self) -> str:
-        return f"internals of {self.sequence.name}"
+    label_template: ClassVar[str] = "internals of {job.sequence.name}"
 
     def frame_cap(self) -> int | None:
         return self.budget.max_frames

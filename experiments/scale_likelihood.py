@@ -15,19 +15,16 @@ first frame's. The probing never changes the tracker's boxes (tested).
 """
 from __future__ import annotations
 
-import functools
-import sys
 from dataclasses import dataclass
 from typing import ClassVar
 
 import matplotlib.pyplot as plt
 import numpy as np
 
-from experiments.grid import describe_params, json_report, script_main
+from experiments.grid import describe_params, json_report, script_entry
 from experiments.shared import ON_TARGET_IOU, blocks
 from experiments.tables import save_figure
-from nrmlc.runner import CachedJob, frames_tracked, sequence_identity
-from nrmlc.tracker.params import TrackerParams
+from nrmlc.runner import TrackerJob, frames_tracked, sequence_identity
 
 STEM = "scale_likelihood"
 TITLE = "Scale drift: the likelihood across scale at the ground truth's centre"
@@ -45,7 +42,7 @@ PROFILE_VERSION = 1
 
 
 @dataclass(frozen=True)
-class ScaleProfile(CachedJob):
+class ScaleProfile(TrackerJob):
     """Track a sequence and, at each annotated frame, code the ground truth at :data:`SCALES`.
 
     A job of :class:`nrmlc.runner.RunCache` (stored under ``<cache>/analysis/``), keyed by
@@ -53,17 +50,10 @@ class ScaleProfile(CachedJob):
     code version.
     """
 
-    sequence: object
-    params: TrackerParams
-    seed: int
     max_frames: int | None = None
 
     folder: ClassVar[str] = "analysis"
-    uses_kernels: ClassVar[bool] = True
-
-    @property
-    def label(self) -> str:
-        return f"scale profile of {self.sequence.name}"
+    label_template: ClassVar[str] = "scale profile of {job.sequence.name}"
 
     def frame_cap(self) -> int | None:
         return self.max_frames
@@ -292,7 +282,4 @@ def _markdown(result: dict) -> str:
 
 
 #: ``python -m experiments.<script> [options]``: this script alone, with the options of ``make figures``.
-main = functools.partial(script_main, __name__)
-
-if __name__ == "__main__":
-    sys.exit(main())
+main = script_entry(__name__)

@@ -14,13 +14,11 @@ with beta = 0.1 and beta = 0), and we report:
 """
 from __future__ import annotations
 
-import functools
-import sys
 
 import matplotlib.pyplot as plt
 import numpy as np
 
-from experiments.grid import describe_params, script_main
+from experiments.grid import describe_params, script_entry
 from experiments.internals import (
     LAMBDAS, PAPER_A_RANGE, PAPER_GRAM_BOUND, budget_for, collect_many, dictionary_weights, limit,
     max_offdiag_row_sum, pooled, strictly_dd, sum_to_one_codes, tracker_params,
@@ -253,7 +251,4 @@ def report(context, data: dict) -> dict:
 
 
 #: ``python -m experiments.<script> [options]``: this script alone, with the options of ``make figures``.
-main = functools.partial(script_main, __name__)
-
-if __name__ == "__main__":
-    sys.exit(main())
+main = script_entry(__name__)

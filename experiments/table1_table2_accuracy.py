@@ -19,15 +19,13 @@ curves; legend with AUC and precision at 20 px).
 """
 from __future__ import annotations
 
-import functools
 import math
-import sys
 
 import numpy as np
 
 from experiments import paper_numbers as paper
 from experiments import peers
-from experiments.grid import params_differences, score, script_main
+from experiments.grid import params_differences, score, script_entry
 from experiments.sequence_sets import paper_name
 from experiments.tables import fmt, mean_std, save_figure, write_csv
 from nrmlc import io
@@ -367,7 +365,4 @@ def report(context, data: dict) -> dict:
 
 
 #: ``python -m experiments.<script> [options]``: this script alone, with the options of ``make figures``.
-main = functools.partial(script_main, __name__)
-
-if __name__ == "__main__":
-    sys.exit(main())
+main = script_entry(__name__)

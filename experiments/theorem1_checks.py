@@ -16,14 +16,12 @@
 """
 from __future__ import annotations
 
-import functools
-import sys
 from fractions import Fraction
 
 import matplotlib.pyplot as plt
 import numpy as np
 
-from experiments.grid import describe_params, json_report, script_main
+from experiments.grid import describe_params, json_report, script_entry
 from experiments.internals import (
     LAMBDAS, N_NEAREST, PAPER_A_RANGE, PAPER_GRAM_BOUND, Budget, budget_for, collect_many, collections_for,
     limit, max_offdiag_row_sum, pooled, strictly_dd, sum_to_one_codes, tracker_params,
@@ -387,7 +385,4 @@ def _markdown(result, context, sequences, budget) -> str:
 
 
 #: ``python -m experiments.<script> [options]``: this script alone, with the options of ``make figures``.
-main = functools.partial(script_main, __name__)
-
-if __name__ == "__main__":
-    sys.exit(main())
+main = script_entry(__name__)

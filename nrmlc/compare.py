@@ -752,6 +752,38 @@ class EvaluateOptions:
     csv: str | None = None
 
 
+#: The folder form's options of ``evaluate``, in ``--help`` order: (option, ``add_argument`` keywords).
+_EVALUATE_OPTIONS = (
+    ("--data", dict(metavar="DATA", help="data root with ground truth: score result FOLDERS (one <Seq>.txt per "
+                                         "sequence, or OTB <Seq>_<Tracker>.mat files) on its sequences")),
+    ("--names", dict(metavar="A,B", help="tracker names, in the order of --results (default: the folders' names, "
+                                         "a .mat tracker's <Tracker>)")),
+    ("--sequences", dict(metavar="A,B", help="only these sequences (default: those a 'nrmlc benchmark' folder "
+                                             "given ran, else all with ground truth)")),
+    ("--name-map", dict(action="append", default=[], metavar="FILE_STEM=SEQUENCE",
+                        help="a result file named FILE_STEM.txt holds SEQUENCE, e.g. FaceOcc1=Occlusion1 "
+                             "(repeatable, or comma-separated)")),
+    ("--otb-trackers", dict(metavar="A,B", help="from folders of OTB <Seq>_<Tracker>.mat files, only these "
+                                                "trackers (default: all; --results DIR:A,B selects per folder)")),
+    ("--all-seeds", dict(action="store_true", help="also score every other seed of a 'nrmlc benchmark' folder "
+                                                   "(DIR/seeds/<seed>/) and average over seeds")),
+    ("--common", dict(action="store_true", help="score only the sequences every tracker has a result file for")),
+    ("--max-frames", dict(type=int, metavar="N", help="score only the first N frames (default: the smallest "
+                                                      "--max-frames of the 'nrmlc benchmark' folders given, "
+                                                      "else all)")),
+    ("--attributes", dict(metavar="DIR", help="OTB attribute files (<Seq>.txt: 11 flags "
+                                              "IV,OPR,SV,OCC,DEF,MB,FM,IPR,OV,BC,LR): also success AUC and "
+                                              "precision@20 per attribute (table, --csv rows)")),
+    ("--attribute-plot", dict(metavar="OUT.png", help="with --attributes: heatmaps tracker x attribute (AUC, and "
+                                                      "AUC minus the tracker's overall AUC)")),
+    ("--speed-plot", dict(metavar="OUT.png", help="success AUC against fps (log scale) for the trackers whose "
+                                                  "results record their speed (OTB .mat files, 'nrmlc "
+                                                  "benchmark' folders)")),
+    ("--plot", dict(metavar="OUT.png", help="draw the success and precision plots of all trackers")),
+    ("--csv", dict(metavar="OUT.csv", help="write per-sequence and overall scores")),
+)
+
+
 def add_evaluate_arguments(parser: argparse.ArgumentParser) -> None:
     """The options of the folder form of ``evaluate`` (the single-file form's stay in nrmlc.cli)."""
     parser.description = (
@@ -767,39 +799,8 @@ def add_evaluate_arguments(parser: argparse.ArgumentParser) -> None:
         "benchmark' folder (with benchmark.json) sets the default sequences and frame cap for every "
         "tracker: what it ran. Outputs must not be inputs: no output inside DATA or a results folder.")
     parser.epilog = "Missing predictions: " + MISSING_RULE
-    parser.add_argument("--data", metavar="DATA",
-                        help="data root with ground truth: score result FOLDERS (one <Seq>.txt per sequence, or "
-                             "OTB <Seq>_<Tracker>.mat files) on its sequences")
-    parser.add_argument("--names", metavar="A,B", help="tracker names, in the order of --results "
-                                                        "(default: the folders' names, a .mat tracker's <Tracker>)")
-    parser.add_argument("--sequences", metavar="A,B",
-                        help="only these sequences (default: those a 'nrmlc benchmark' folder given ran, else all "
-                             "with ground truth)")
-    parser.add_argument("--name-map", action="append", default=[], metavar="FILE_STEM=SEQUENCE",
-                        help="a result file named FILE_STEM.txt holds SEQUENCE, e.g. FaceOcc1=Occlusion1 "
-                             "(repeatable, or comma-separated)")
-    parser.add_argument("--otb-trackers", metavar="A,B",
-                        help="from folders of OTB <Seq>_<Tracker>.mat files, only these trackers (default: all; "
-                             "--results DIR:A,B selects per folder)")
-    parser.add_argument("--all-seeds", action="store_true",
-                        help="also score every other seed of a 'nrmlc benchmark' folder (DIR/seeds/<seed>/) and "
-                             "average over seeds")
-    parser.add_argument("--common", action="store_true",
-                        help="score only the sequences every tracker has a result file for")
-    parser.add_argument("--max-frames", type=int, metavar="N",
-                        help="score only the first N frames (default: the smallest --max-frames of the 'nrmlc "
-                             "benchmark' folders given, else all)")
-    parser.add_argument("--attributes", metavar="DIR",
-                        help="OTB attribute files (<Seq>.txt: 11 flags IV,OPR,SV,OCC,DEF,MB,FM,IPR,OV,BC,LR): "
-                             "also success AUC and precision@20 per attribute (table, --csv rows)")
-    parser.add_argument("--attribute-plot", metavar="OUT.png",
-                        help="with --attributes: heatmaps tracker x attribute (AUC, and AUC minus the tracker's "
-                             "overall AUC)")
-    parser.add_argument("--speed-plot", metavar="OUT.png",
-                        help="success AUC against fps (log scale) for the trackers whose results record their "
-                             "speed (OTB .mat files, 'nrmlc benchmark' folders)")
-    parser.add_argument("--plot", metavar="OUT.png", help="draw the success and precision plots of all trackers")
-    parser.add_argument("--csv", metavar="OUT.csv", help="write per-sequence and overall scores")
+    for option, spec in _EVALUATE_OPTIONS:
+        parser.add_argument(option, **spec)
 
 
 def check_outputs(args: EvaluateOptions, inputs=(), input_folders=()) -> None:

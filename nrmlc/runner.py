@@ -16,7 +16,8 @@ A *job* is anything with
 
 :class:`Job` states this contract as a :class:`typing.Protocol`; :class:`CachedJob` is the base
 class the jobs share (the key from the description, the frame count from the sequence and the
-job's frame cap).
+job's frame cap); :class:`TrackerJob` adds the fields of a job that runs our tracker (sequence,
+parameters, seed) and its label from a template.
 
 :class:`RunSpec` (one tracking run) is the main one; the experiments add live
 OpenCV peer runs and recorded tracker internals. Each result is stored under
@@ -166,6 +167,24 @@ class CachedJob:
 
     def result(self, arrays: dict):
         return dict(arrays)
+
+
+@dataclass(frozen=True)
+class TrackerJob(CachedJob):
+    """A :class:`CachedJob` that runs our tracker over one sequence: its first fields are the
+    sequence, the parameters and the seed (a job adds its own after them), and its progress
+    line, :attr:`label`, is :attr:`label_template` filled in with the job."""
+
+    sequence: object
+    params: TrackerParams
+    seed: int
+
+    #: ``str.format``-ed with ``job=self``, e.g. ``"internals of {job.sequence.name}"``.
+    label_template: ClassVar[str] = "{job.sequence.name}"
+
+    @property
+    def label(self) -> str:
+        return self.label_template.format(job=self)
 
 
 @dataclass(frozen=True)
