@@ -205,10 +205,12 @@ def test_unknown_video_extension_is_our_line_only(seq, tmp_path):
 
 
 def _default_sigint() -> None:
-    # A shell without job control starts background commands with SIGINT ignored, and Python
-    # then leaves it ignored (no KeyboardInterrupt): a test suite run as `make test &` would see
-    # the run finish. The child gets the default disposition, as in a terminal.
-    signal.signal(signal.SIGINT, signal.SIG_DFL)
+    # A shell without job control starts background commands with SIGINT ignored, and `nohup`
+    # ignores SIGHUP; the run leaves an ignored signal ignored (as it should), so a test suite run
+    # as `make test &` or under nohup would see the run finish. The child gets the default
+    # dispositions, as in a terminal.
+    for signum in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP):
+        signal.signal(signum, signal.SIG_DFL)
 
 
 @pytest.mark.parametrize("signum", [signal.SIGINT, signal.SIGTERM, signal.SIGHUP], ids=["SIGINT", "SIGTERM", "SIGHUP"])
