@@ -40,6 +40,7 @@ from nrmlc.kernels.coding import code_candidates
 from nrmlc.kernels.distance import candidate_template_dots, template_gram
 from nrmlc.kernels.warp import warp_patches
 from nrmlc.tracker.generative import LocalHistogramModel
+from nrmlc.tracker.illumination import remove_local_mean
 from nrmlc.tracker.params import TrackerParams
 from nrmlc.tracker.redetect import REDETECT_TRIGGER, needs_search, search
 from nrmlc.tracker.templates import (SCM_PUSH_INIT, SCM_PUSH_UPDATE, negative_states, positive_states,
@@ -272,6 +273,15 @@ class NRMLCTracker:
             states = negative_states(self.rng, state, p.n_negative, p.positive_radius, p.negative_radius)
         return self.patches(frame, states)
 
+    def _features(self, frame: np.ndarray) -> np.ndarray:
+        """The frame the patches are cut from: as given, or without its local brightness
+        (``illumination_window``, over a box sized by the current estimate)."""
+        window = self.params.illumination_window
+        if not window:
+            return frame
+        size = self.params.patch_size * self.state[2] * np.sqrt(self.state[4])
+        return remove_local_mean(frame, window, float(size))
+
     # -- public interface -----------------------------------------------
     def init(self, image, box) -> None:
         """Start tracking the target in ``box`` (1-based x, y, w, h) of ``image``
@@ -287,6 +297,7 @@ class NRMLCTracker:
         self.frame_shape = frame.shape
         self.state = box_to_state(box, p.patch_size)
         self.initial_box = box
+        frame = self._features(frame)
         self.particles = None
         self.log_weights = None
         positives = self._sample_positives(frame, self.state)
@@ -319,6 +330,7 @@ class NRMLCTracker:
             raise ParameterError(f"frame is {frame.shape[1]}x{frame.shape[0]} but init() saw "
                                  f"{self.frame_shape[1]}x{self.frame_shape[0]}")
         self.frame_index += 1
+        frame = self._features(frame)
         result, coding, best = self.step(frame)
         best_patch = coding.patches[best][None, :]
         if (self.frame_index + 1) % self.params.update_interval == 0:
@@ -371,6 +383,9 @@ class NRMLCTracker:
             noise[:, 0:2] *= size[:, None]
         if translation_factor != 1.0:
             noise[:, 0:2] *= translation_factor
+        if p.hold_scale_when_lost and self.last is not None and self.last.error_positive >= REDETECT_TRIGGER:
+            noise[:, 2] = 0.0
+            noise[:, 4] = 0.0
         states[:, 0:2] += noise[:, 0:2]
         states[:, 2] *= np.exp(noise[:, 2])
         states[:, 3] += noise[:, 3]

@@ -145,6 +145,15 @@ class TrackerParams:
         'pixels': ``motion_sigmas[0:2]`` are image pixels. 'relative' (L1APG's
         ``draw_sample``): they are template pixels, i.e. multiplied by the target's
         size ``sqrt((w^2 + h^2) / 2) / patch_size``.
+    hold_scale_when_lost : bool
+        *Ours* (False: the paper). While the last frame's best candidate used no positive
+        template (eps_pos* = 1, the re-detection trigger: the target is not recognised), the
+        particles' scale and aspect get no noise, so a box that has lost its target keeps the
+        size it last held instead of drifting on the background (the collapse of round 17).
+    illumination_window : float
+        *Ours* (0 = off: the paper). The frame's local mean over a box this many times the
+        target's size is subtracted before any patch is cut, so a change of brightness cancels
+        (:mod:`nrmlc.tracker.illumination`).
     redetect_count : int
         Re-detection (*ours*; 0 = off, the paper). On a frame whose best candidate's code
         puts no weight on a positive template (eps_pos* = 1: the target looks like nothing
@@ -186,6 +195,7 @@ class TrackerParams:
     motion_sigmas: tuple[float, ...] = (2.0, 2.0, 0.01, 0.0, 0.005, 0.0)
     propagation: Literal["condensation", "best"] = "condensation"
     translation_noise: Literal["relative", "pixels"] = "relative"
+    hold_scale_when_lost: bool = False
 
     # -- templates (Sec. 3) ---------------------------------------------------------------
     n_positive: int = bounded(50, 1)
@@ -196,6 +206,7 @@ class TrackerParams:
     positive_sigma: float = bounded(1.0, 0, MAX_RADIUS)
     negative_push: float = bounded(0.25, 0, 2)
     patch_size: int = bounded(PATCH_SIZE, 4)
+    illumination_window: float = bounded(0.0, 0, 100)
 
     # -- coding (Algorithm 1) -------------------------------------------------------------
     dictionary_sizes: tuple[int, ...] = (5, 8, 10)
@@ -373,9 +384,9 @@ PRESETS: dict[str, dict] = {
 
 #: The fields by the part of the algorithm they govern (the sections of the class body).
 SECTIONS: dict[str, tuple[str, ...]] = {
-    "motion": ("n_particles", "motion_sigmas", "propagation", "translation_noise"),
+    "motion": ("n_particles", "motion_sigmas", "propagation", "translation_noise", "hold_scale_when_lost"),
     "templates": ("n_positive", "n_negative", "template_sampling", "positive_radius", "negative_radius",
-                  "positive_sigma", "negative_push", "patch_size"),
+                  "positive_sigma", "negative_push", "patch_size", "illumination_window"),
     "coding": ("dictionary_sizes", "coding", "lam", "beta", "n_iterations"),
     "confidence": ("alpha", "confidence"),
     "updates": ("update_interval", "max_positive", "update_error_threshold", "occlusion_detection",
