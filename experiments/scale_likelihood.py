@@ -24,7 +24,7 @@ import numpy as np
 from experiments.grid import describe_params, json_report, script_entry
 from experiments.shared import ON_TARGET_IOU, blocks
 from experiments.tables import save_figure
-from nrmlc.runner import TrackerJob, frames_tracked, sequence_identity
+from nrmlc.runner import TrackerJob, frames_tracked, params_for_key, sequence_identity
 
 STEM = "scale_likelihood"
 TITLE = "Scale drift: the likelihood across scale at the ground truth's centre"
@@ -59,7 +59,7 @@ class ScaleProfile(TrackerJob):
         return self.max_frames
 
     def description(self, version: str) -> dict:
-        return {"sequence": sequence_identity(self.sequence), "params": self.params.as_dict(),
+        return {"sequence": sequence_identity(self.sequence), "params": params_for_key(self.params),
                 "seed": int(self.seed), "max_frames": self.max_frames, "scales": list(SCALES),
                 "profile": PROFILE_VERSION, "code_version": version}
 

@@ -62,7 +62,7 @@ import numpy as np
 
 from nrmlc import io
 from nrmlc.errors import ParameterError
-from nrmlc.tracker.params import TrackerParams
+from nrmlc.tracker.params import ADDED_SWITCHES_OFF, TrackerParams
 from nrmlc.tracker.loop import TrackResult, track_sequence
 
 #: Sources whose change can change a run's boxes. ``data`` is included because it
@@ -116,8 +116,11 @@ def frames_tracked(sequence, n_frames: int | None) -> int:
 
 
 def params_for_key(params: TrackerParams) -> dict:
-    """The parameters as a run's key holds them (``params.as_dict()``)."""
-    return params.as_dict()
+    """The parameters as a run's key holds them: ``params.as_dict()`` without the switches that are
+    off and were added after runs were cached (:data:`nrmlc.tracker.params.ADDED_SWITCHES_OFF`)."""
+    values = params.as_dict()
+    return {name: value for name, value in values.items()
+            if not (name in ADDED_SWITCHES_OFF and value == ADDED_SWITCHES_OFF[name])}
 
 
 def description_key(description: dict) -> str:

@@ -37,6 +37,11 @@ MAX_MOTION_SIGMA = (1000.0, 1000.0, 1.0, math.pi, 1.0, math.pi)
 NOT_ADOPTED = ("patch_normalization", "dictionaries", "wide_share", "wide_factor", "estimate_count",
                "velocity_damping", "antialias", "keep_initial_positives", "scale_prior")
 
+#: Switches added after runs were cached, with their off value (the earlier behaviour). A run's
+#: cache key leaves a switch out while it is off (``nrmlc.runner.params_for_key``), so the runs
+#: cached before it existed keep their keys.
+ADDED_SWITCHES_OFF = {"illumination_window": 0.0, "hold_scale_when_lost": False}
+
 
 def bounded(default, low=None, high=None, *, low_open: bool = False, high_open: bool = False):
     """A field with ``default`` whose value must lie between ``low`` and ``high`` (None: no bound;
