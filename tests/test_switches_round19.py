@@ -70,3 +70,34 @@ def test_the_scale_is_held_only_while_the_target_is_not_recognised(sequence, los
     held = np.allclose(diffused[:, [2, 4]], states[:, [2, 4]], rtol=0, atol=0)
     assert held == lost
     assert not np.allclose(diffused[:, :2], states[:, :2])  # translation noise either way
+
+
+@pytest.mark.parametrize("held", [True, False])
+def test_the_scale_prior_acts_only_after_a_held_frame(sequence, held):
+    tracker = NRMLCTracker(seed=0, n_particles=100, held_scale_prior=0.2)
+    tracker.init(sequence.frame(0), sequence.init_box)
+    tracker.update(sequence.frame(1))
+    tracker.last.error_positive = 0.0 if held else tracker.params.update_error_threshold
+    states = np.tile(tracker.state, (3, 1))
+    states[:, 2] = tracker.state[2] * np.array([1.0, 0.8, 1.25])
+    states[:, 4] = 1.0
+    states[0, 2] = tracker.initial_box[2] / tracker.params.patch_size  # the first box's width ...
+    states[:, 4] = tracker.initial_box[3] / tracker.initial_box[2]    # ... and aspect: prior 0 there
+    coding = tracker.encode(tracker.patches(sequence.frame(1), states))
+    shifted = tracker._with_scale_prior(coding, states).log_confidence - coding.log_confidence
+    if held:
+        ratio = states[1:, 2] / states[0, 2]
+        np.testing.assert_allclose(shifted, np.r_[0.0, -0.5 * (np.log(ratio) / 0.2) ** 2], atol=1e-12)
+    else:
+        np.testing.assert_array_equal(shifted, 0.0)
+
+
+def test_an_added_switch_stays_out_of_the_run_key_while_off():
+    from nrmlc.runner import params_for_key
+    from nrmlc.tracker.params import ADDED_SWITCHES_OFF
+
+    default = params_for_key(TrackerParams())
+    assert not set(ADDED_SWITCHES_OFF) & set(default)
+    assert params_for_key(TrackerParams(held_scale_prior=0.3))["held_scale_prior"] == 0.3
+    for name, off in ADDED_SWITCHES_OFF.items():
+        assert getattr(TrackerParams(), name) == off

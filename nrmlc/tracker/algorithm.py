@@ -27,6 +27,7 @@ Per frame:
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 import threading
 from dataclasses import dataclass
 
@@ -430,6 +431,17 @@ class NRMLCTracker:
                       error_positive=error_positive, error_negative=error_negative,
                       log_confidence=log_confidence, similarity=similarity)
 
+    def _with_scale_prior(self, coding: Coding, states: np.ndarray) -> Coding:
+        """``coding`` with ``held_scale_prior`` added to its log h, when it is on and the last
+        frame held the target; ``states`` (n, 6) are the coded candidates'."""
+        sigma = self.params.held_scale_prior
+        if not sigma or self.last is None or self.last.error_positive >= self.params.update_error_threshold:
+            return coding
+        log_size = np.log(states[:, 2]) + 0.5 * np.log(states[:, 4])
+        initial = np.log(self.initial_box[2] * self.initial_box[3]) / 2 - np.log(self.params.patch_size)
+        prior = -0.5 * ((log_size - initial) / sigma) ** 2
+        return dataclasses.replace(coding, log_confidence=coding.log_confidence + prior)
+
     def _generative_similarity(self, candidates: np.ndarray, log_confidence: np.ndarray) -> np.ndarray:
         """The generative term's similarity (n,) of each candidate: the ``generative_candidates``
         most confident are coded locally, the others get the lowest of their similarities."""
@@ -452,7 +464,7 @@ class NRMLCTracker:
         """
         p = self.params
         states = self.sample_particles()
-        coding = self.encode(self.patches(frame, states))
+        coding = self._with_scale_prior(self.encode(self.patches(frame, states)), states)
         n_local = len(states)
         best = int(np.argmax(coding.log_confidence))
         searched = needs_search(p, coding.error_positive[best])

@@ -40,7 +40,7 @@ NOT_ADOPTED = ("patch_normalization", "dictionaries", "wide_share", "wide_factor
 #: Switches added after runs were cached, with their off value (the earlier behaviour). A run's
 #: cache key leaves a switch out while it is off (``nrmlc.runner.params_for_key``), so the runs
 #: cached before it existed keep their keys.
-ADDED_SWITCHES_OFF = {"illumination_window": 0.0, "hold_scale_when_lost": False}
+ADDED_SWITCHES_OFF = {"illumination_window": 0.0, "hold_scale_when_lost": False, "held_scale_prior": 0.0}
 
 
 def bounded(default, low=None, high=None, *, low_open: bool = False, high_open: bool = False):
@@ -106,6 +106,12 @@ class TrackerParams:
     confidence : {'corrected', 'literal'}
         'corrected': h = exp(-alpha (eps_pos - eps_neg)); 'literal': the printed
         h = 1 / exp(-alpha (eps_pos - eps_neg)) (see docs/DEVIATIONS.md, item 1).
+    held_scale_prior : float
+        *Ours* (0 = off: the paper). On a frame after one whose result could join the positives
+        (eps_pos* below ``update_error_threshold``: the target is held), log h gains
+        -0.5 (log(size / size_0) / ``held_scale_prior``)^2, size the geometric mean of the box's
+        width and height and size_0 the first box's: the scale is anchored on the frames whose
+        results feed the positives, where the drift of round 17 feeds itself.
     update_interval : int
         Templates are updated every this many frames (paper: 5, the default). Every frame with
         the threshold 0.15 (round 6) did not hold on the 36 development targets: -0.015 ±
@@ -223,6 +229,7 @@ class TrackerParams:
     # -- confidence (Algorithm 2, step 2.4) -----------------------------------------------
     alpha: float = bounded(25.0, 0, low_open=True)
     confidence: Literal["corrected", "literal"] = "corrected"
+    held_scale_prior: float = bounded(0.0, 0, 10)
 
     # -- template updates and occlusion (Algorithm 2, step 2.5) ---------------------------
     update_interval: int = bounded(5, 1)
@@ -393,7 +400,7 @@ SECTIONS: dict[str, tuple[str, ...]] = {
     "templates": ("n_positive", "n_negative", "template_sampling", "positive_radius", "negative_radius",
                   "positive_sigma", "negative_push", "patch_size", "illumination_window"),
     "coding": ("dictionary_sizes", "coding", "lam", "beta", "n_iterations"),
-    "confidence": ("alpha", "confidence"),
+    "confidence": ("alpha", "confidence", "held_scale_prior"),
     "updates": ("update_interval", "max_positive", "update_error_threshold", "occlusion_detection",
                 "occlusion_max_negative", "coefficient_tolerance"),
     "redetection": ("redetect_count", "redetect_factor", "redetect_accept"),
