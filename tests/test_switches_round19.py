@@ -1,47 +1,43 @@
-"""Round 19's two switches: the frame without its local brightness, the scale held while lost."""
+"""Round 19's switches: colour features, the scale held while lost, the scale prior while held."""
 import numpy as np
 import pytest
 
 from nrmlc import NRMLCTracker, TrackerParams
 from nrmlc.data import SyntheticSequence, SyntheticSpec
-from nrmlc.tracker.illumination import remove_local_mean
 from nrmlc.tracker.redetect import REDETECT_TRIGGER
 
 
-def _reference_local_mean(frame, side):
-    """The mean over a side x side box about each pixel, the border reflected (OpenCV's
-    BORDER_REFLECT: ...cba|abc...), by explicit summation."""
-    half = side // 2
-    padded = np.pad(frame.astype(np.float64), half, mode="symmetric")
-    out = np.empty(frame.shape)
-    for row in range(frame.shape[0]):
-        for col in range(frame.shape[1]):
-            out[row, col] = padded[row:row + side, col:col + side].mean()
-    return out
+def test_colour_planes_are_scaled_as_the_gray_frame():
+    from nrmlc.data.image import as_colour_planes
+
+    image = np.random.default_rng(0).integers(0, 256, (6, 7, 3), dtype=np.uint8)
+    blue, green, red = as_colour_planes(image)
+    np.testing.assert_allclose(red, image[:, :, 2] / 255.0, atol=1e-7)
+    assert blue.dtype == np.float32 and blue.flags.c_contiguous
+    gray = image[:, :, 0]
+    for plane in as_colour_planes(gray):
+        np.testing.assert_allclose(plane, gray / 255.0, atol=1e-7)
 
 
-@pytest.mark.parametrize("window, size", [(1.0, 5.0), (3.0, 3.0), (0.1, 4.0)])
-def test_remove_local_mean_matches_the_explicit_box_mean(window, size):
-    frame = np.random.default_rng(0).random((17, 23)).astype(np.float32)
-    side = max(3, int(round(window * size)) | 1)
-    expected = frame - _reference_local_mean(frame, side)
-    np.testing.assert_allclose(remove_local_mean(frame, window, size), expected, atol=2e-6)
-
-
-def test_an_added_brightness_cancels_and_the_contrast_stays():
-    rng = np.random.default_rng(1)
-    frame = rng.random((40, 50)).astype(np.float32)
-    brighter = frame + np.float32(0.3)
-    np.testing.assert_allclose(remove_local_mean(brighter, 3.0, 8.0), remove_local_mean(frame, 3.0, 8.0), atol=1e-5)
-    # a bright square on a dark ground keeps a positive mean inside: its contrast is not thrown away
-    square = np.zeros((60, 60), np.float32)
-    square[25:35, 25:35] = 1.0
-    assert remove_local_mean(square, 3.0, 10.0)[25:35, 25:35].mean() > 0.5
+def test_a_colour_patch_is_four_unit_planes_side_by_side(sequence):
+    tracker = NRMLCTracker(seed=0, n_particles=50, features="colour")
+    image = np.stack([sequence.raw_frame(0)] * 3, axis=2) if sequence.raw_frame(0).ndim == 2 else sequence.raw_frame(0)
+    tracker.init(image, sequence.init_box)
+    states = np.tile(tracker.state, (5, 1))
+    patches = tracker.patches(tracker._frame(image), states)
+    size = tracker.params.patch_size ** 2
+    assert patches.shape == (5, 4 * size)
+    np.testing.assert_allclose(np.linalg.norm(patches, axis=1), 1.0, rtol=1e-5)
+    gray = NRMLCTracker(seed=0, n_particles=50)
+    gray.init(image, sequence.init_box)
+    # a gray scene: every plane is the gray patch, at half its norm
+    np.testing.assert_allclose(patches[:, :size] * 2, gray.patches(gray._frame(image), states), atol=1e-5)
+    np.testing.assert_allclose(patches[:, size:2 * size], patches[:, :size], atol=1e-5)
 
 
 def test_the_switches_are_off_in_the_default_and_the_paper_preset():
     for params in (TrackerParams(), TrackerParams.paper()):
-        assert params.illumination_window == 0.0 and params.hold_scale_when_lost is False
+        assert params.features == "gray" and params.hold_scale_when_lost is False and params.held_scale_prior == 0
 
 
 @pytest.fixture(scope="module")
@@ -49,14 +45,11 @@ def sequence():
     return SyntheticSequence(SyntheticSpec(name="t", seed=3, n_frames=12))
 
 
-def test_illumination_window_tracks_and_changes_the_boxes(sequence):
-    boxes = {}
-    for window in (0.0, 3.0):
-        tracker = NRMLCTracker(seed=0, n_particles=100, illumination_window=window)
-        tracker.init(sequence.frame(0), sequence.init_box)
-        boxes[window] = np.array([tracker.update(sequence.frame(i)) for i in range(1, len(sequence))])
-    assert np.all(np.isfinite(boxes[3.0]))
-    assert not np.array_equal(boxes[0.0], boxes[3.0])
+def test_colour_tracks_a_sequence_from_its_stored_frames(sequence):
+    from nrmlc.tracker import track_sequence
+
+    run = track_sequence(sequence, TrackerParams(n_particles=100, features="colour"), seed=0)
+    assert run.boxes.shape == (len(sequence), 4) and np.all(np.isfinite(run.boxes))
 
 
 @pytest.mark.parametrize("lost", [True, False])

@@ -33,7 +33,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from nrmlc.data.image import as_gray_frame
+from nrmlc.data.image import as_colour_planes, as_gray_frame
 from nrmlc.errors import ParameterError
 from nrmlc.geometry import (MIN_BOX_SIZE, as_box, box_to_state, clamp_states, clip_initial_box, state_to_affine,
                             state_to_box, usable_boxes)
@@ -41,7 +41,6 @@ from nrmlc.kernels.coding import code_candidates
 from nrmlc.kernels.distance import candidate_template_dots, template_gram
 from nrmlc.kernels.warp import warp_patches
 from nrmlc.tracker.generative import LocalHistogramModel
-from nrmlc.tracker.illumination import remove_local_mean
 from nrmlc.tracker.params import TrackerParams
 from nrmlc.tracker.redetect import REDETECT_TRIGGER, needs_search, search
 from nrmlc.tracker.templates import (SCM_PUSH_INIT, SCM_PUSH_UPDATE, negative_states, positive_states,
@@ -237,10 +236,15 @@ class NRMLCTracker:
             self._busy.release()
 
     # -- templates -------------------------------------------------------
-    def patches(self, frame: np.ndarray, states: np.ndarray) -> np.ndarray:
-        """The patch vectors the tracker codes for ``states`` (n, 6) in ``frame`` (a frame
-        as ``update`` sees it): (n, patch_size**2) float32, unit rows."""
-        return warp_patches(frame, np.ascontiguousarray(state_to_affine(states)), self.params.patch_size)
+    def patches(self, frame, states: np.ndarray) -> np.ndarray:
+        """The patch vectors the tracker codes for ``states`` (n, 6) in ``frame`` (a frame as
+        ``update`` sees it: (H, W) float32, or a tuple of such planes under ``features =
+        'colour'``): (n, planes * patch_size**2) float32, unit rows."""
+        affines = np.ascontiguousarray(state_to_affine(states))
+        if not isinstance(frame, tuple):
+            return warp_patches(frame, affines, self.params.patch_size)
+        parts = [warp_patches(plane, affines, self.params.patch_size) for plane in frame]
+        return np.ascontiguousarray(np.hstack(parts) * np.float32(1.0 / np.sqrt(len(parts))))
 
     def _set_templates(self, positives: np.ndarray, negatives: np.ndarray,
                        kept_positives: np.ndarray | None = None) -> None:
@@ -274,14 +278,13 @@ class NRMLCTracker:
             states = negative_states(self.rng, state, p.n_negative, p.positive_radius, p.negative_radius)
         return self.patches(frame, states)
 
-    def _features(self, frame: np.ndarray) -> np.ndarray:
-        """The frame the patches are cut from: as given, or without its local brightness
-        (``illumination_window``, over a box sized by the current estimate)."""
-        window = self.params.illumination_window
-        if not window:
-            return frame
-        size = self.params.patch_size * self.state[2] * np.sqrt(self.state[4])
-        return remove_local_mean(frame, window, float(size))
+    def _frame(self, image):
+        """``image`` as the patches are cut from it: the gray frame, or under ``features =
+        'colour'`` the tuple (gray, blue, green, red) of (H, W) float32 planes."""
+        gray = as_gray_frame(image)
+        if self.params.features != "colour":
+            return gray
+        return (gray,) + as_colour_planes(image)
 
     # -- public interface -----------------------------------------------
     def init(self, image, box) -> None:
@@ -291,14 +294,14 @@ class NRMLCTracker:
             self._init(image, box)
 
     def _init(self, image, box) -> None:
-        frame = as_gray_frame(image)
-        box = clip_initial_box(box, frame.shape)
+        frame = self._frame(image)
+        shape = frame[0].shape if isinstance(frame, tuple) else frame.shape
+        box = clip_initial_box(box, shape)
         p = self.params
         self.rng = np.random.default_rng(self.seed)
-        self.frame_shape = frame.shape
+        self.frame_shape = shape
         self.state = box_to_state(box, p.patch_size)
         self.initial_box = box
-        frame = self._features(frame)
         self.particles = None
         self.log_weights = None
         positives = self._sample_positives(frame, self.state)
@@ -326,12 +329,12 @@ class NRMLCTracker:
     def _update(self, image) -> np.ndarray:
         if self.state is None:
             raise ParameterError("call init(frame, box) before update(frame)")
-        frame = as_gray_frame(image)
-        if frame.shape != self.frame_shape:
-            raise ParameterError(f"frame is {frame.shape[1]}x{frame.shape[0]} but init() saw "
+        frame = self._frame(image)
+        shape = frame[0].shape if isinstance(frame, tuple) else frame.shape
+        if shape != self.frame_shape:
+            raise ParameterError(f"frame is {shape[1]}x{shape[0]} but init() saw "
                                  f"{self.frame_shape[1]}x{self.frame_shape[0]}")
         self.frame_index += 1
-        frame = self._features(frame)
         result, coding, best = self.step(frame)
         best_patch = coding.patches[best][None, :]
         if (self.frame_index + 1) % self.params.update_interval == 0:

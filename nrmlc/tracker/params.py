@@ -40,7 +40,12 @@ NOT_ADOPTED = ("patch_normalization", "dictionaries", "wide_share", "wide_factor
 #: Switches added after runs were cached, with their off value (the earlier behaviour). A run's
 #: cache key leaves a switch out while it is off (``nrmlc.runner.params_for_key``), so the runs
 #: cached before it existed keep their keys.
-ADDED_SWITCHES_OFF = {"illumination_window": 0.0, "hold_scale_when_lost": False, "held_scale_prior": 0.0}
+ADDED_SWITCHES_OFF = {"features": "gray", "hold_scale_when_lost": False, "held_scale_prior": 0.0}
+
+
+def n_planes(features: str) -> int:
+    """Image planes a patch vector is cut from (:attr:`TrackerParams.features`)."""
+    return 4 if features == "colour" else 1
 
 
 def bounded(default, low=None, high=None, *, low_open: bool = False, high_open: bool = False):
@@ -161,10 +166,12 @@ class TrackerParams:
         template (eps_pos* = 1, the re-detection trigger: the target is not recognised), the
         particles' scale and aspect get no noise, so a box that has lost its target keeps the
         size it last held instead of drifting on the background (the collapse of round 17).
-    illumination_window : float
-        *Ours* (0 = off: the paper). The frame's local mean over a box this many times the
-        target's size is subtracted before any patch is cut, so a change of brightness cancels
-        (:mod:`nrmlc.tracker.illumination`).
+    features : {'gray', 'colour'}
+        What a patch vector holds. 'gray' (the paper): the unit-norm gray patch. 'colour'
+        (*ours*): the gray patch and the blue, green and red patches, each unit-norm, side by
+        side and scaled to unit norm together (4 patch_size**2 entries; a gray image gives
+        four copies of its gray patch). Each plane's own normalisation cancels a change of
+        gain in each colour. The generative term reads the gray part.
     redetect_count : int
         Re-detection (*ours*; 0 = off, the paper). On a frame whose best candidate's code
         puts no weight on a positive template (eps_pos* = 1: the target looks like nothing
@@ -217,7 +224,7 @@ class TrackerParams:
     positive_sigma: float = bounded(1.0, 0, MAX_RADIUS)
     negative_push: float = bounded(0.25, 0, 2)
     patch_size: int = bounded(PATCH_SIZE, 4)
-    illumination_window: float = bounded(0.0, 0, 100)
+    features: Literal["gray", "colour"] = "gray"
 
     # -- coding (Algorithm 1) -------------------------------------------------------------
     dictionary_sizes: tuple[int, ...] = (5, 8, 10)
@@ -304,7 +311,7 @@ class TrackerParams:
         """Bytes the largest per-frame arrays take, by the parameters that size them (an estimate
         with the copies a frame makes; the frame itself and the interpreter come on top)."""
         candidates = self.n_particles + self.redetect_count
-        vector = self.patch_size**2
+        vector = self.patch_size**2 * n_planes(self.features)
         templates = self.max_positive + self.n_negative
         local = ((self.patch_size - LOCAL_SIZE) // self.generative_step + 1) ** 2
         atoms_grid = ((self.patch_size - LOCAL_SIZE) // 2 + 1) ** 2
@@ -398,7 +405,7 @@ PRESETS: dict[str, dict] = {
 SECTIONS: dict[str, tuple[str, ...]] = {
     "motion": ("n_particles", "motion_sigmas", "propagation", "translation_noise", "hold_scale_when_lost"),
     "templates": ("n_positive", "n_negative", "template_sampling", "positive_radius", "negative_radius",
-                  "positive_sigma", "negative_push", "patch_size", "illumination_window"),
+                  "positive_sigma", "negative_push", "patch_size", "features"),
     "coding": ("dictionary_sizes", "coding", "lam", "beta", "n_iterations"),
     "confidence": ("alpha", "confidence", "held_scale_prior"),
     "updates": ("update_interval", "max_positive", "update_error_threshold", "occlusion_detection",
