@@ -45,11 +45,23 @@ def sequence():
     return SyntheticSequence(SyntheticSpec(name="t", seed=3, n_frames=12))
 
 
-def test_colour_tracks_a_sequence_from_its_stored_frames(sequence):
+@pytest.mark.parametrize("features", ["colour", "gradient"])
+def test_other_features_track_a_sequence(sequence, features):
     from nrmlc.tracker import track_sequence
 
-    run = track_sequence(sequence, TrackerParams(n_particles=100, features="colour"), seed=0)
+    run = track_sequence(sequence, TrackerParams(n_particles=100, features=features), seed=0)
     assert run.boxes.shape == (len(sequence), 4) and np.all(np.isfinite(run.boxes))
+    assert run.diagnostics["error_positive"][1:].max() <= 4.0
+
+
+def test_the_gradient_plane_is_the_sobel_magnitude():
+    from nrmlc.data.image import gradient_magnitude
+
+    frame = np.zeros((9, 9), np.float32)
+    frame[:, 5:] = 1.0  # a vertical edge: |dx| = 4 (Sobel's weights 1, 2, 1) beside it, 0 elsewhere
+    magnitude = gradient_magnitude(frame)
+    np.testing.assert_allclose(magnitude[:, 4:6], 4.0)
+    np.testing.assert_allclose(magnitude[:, :3], 0.0)
 
 
 @pytest.mark.parametrize("lost", [True, False])

@@ -155,6 +155,13 @@ def as_colour_planes(image) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return tuple(np.ascontiguousarray(planes[:, :, channel]) for channel in range(3))
 
 
+def gradient_magnitude(gray: np.ndarray) -> np.ndarray:
+    """(H, W) float32: the magnitude of the 3x3 Sobel gradient of a gray frame (border reflected)."""
+    dx = cv2.Sobel(gray, cv2.CV_32F, 1, 0, ksize=3)
+    dy = cv2.Sobel(gray, cv2.CV_32F, 0, 1, ksize=3)
+    return np.ascontiguousarray(cv2.magnitude(dx, dy))
+
+
 def _is_pil_image(image) -> bool:
     """True for a PIL.Image without importing PIL (it is not a dependency)."""
     return type(image).__module__.startswith("PIL.") and hasattr(image, "convert") and hasattr(image, "mode")

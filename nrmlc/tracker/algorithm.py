@@ -33,7 +33,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from nrmlc.data.image import as_colour_planes, as_gray_frame
+from nrmlc.data.image import as_colour_planes, as_gray_frame, gradient_magnitude
 from nrmlc.errors import ParameterError
 from nrmlc.geometry import (MIN_BOX_SIZE, as_box, box_to_state, clamp_states, clip_initial_box, state_to_affine,
                             state_to_box, usable_boxes)
@@ -279,12 +279,15 @@ class NRMLCTracker:
         return self.patches(frame, states)
 
     def _frame(self, image):
-        """``image`` as the patches are cut from it: the gray frame, or under ``features =
-        'colour'`` the tuple (gray, blue, green, red) of (H, W) float32 planes."""
+        """``image`` as the patches are cut from it: the gray frame, or a tuple of (H, W)
+        float32 planes, (gray, blue, green, red) under ``features = 'colour'``, (gray, gradient
+        magnitude) under 'gradient'."""
         gray = as_gray_frame(image)
-        if self.params.features != "colour":
-            return gray
-        return (gray,) + as_colour_planes(image)
+        if self.params.features == "colour":
+            return (gray,) + as_colour_planes(image)
+        if self.params.features == "gradient":
+            return gray, gradient_magnitude(gray)
+        return gray
 
     # -- public interface -----------------------------------------------
     def init(self, image, box) -> None:

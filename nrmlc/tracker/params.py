@@ -45,7 +45,7 @@ ADDED_SWITCHES_OFF = {"features": "gray", "hold_scale_when_lost": False, "held_s
 
 def n_planes(features: str) -> int:
     """Image planes a patch vector is cut from (:attr:`TrackerParams.features`)."""
-    return 4 if features == "colour" else 1
+    return {"colour": 4, "gradient": 2}.get(features, 1)
 
 
 def bounded(default, low=None, high=None, *, low_open: bool = False, high_open: bool = False):
@@ -166,12 +166,14 @@ class TrackerParams:
         template (eps_pos* = 1, the re-detection trigger: the target is not recognised), the
         particles' scale and aspect get no noise, so a box that has lost its target keeps the
         size it last held instead of drifting on the background (the collapse of round 17).
-    features : {'gray', 'colour'}
+    features : {'gray', 'colour', 'gradient'}
         What a patch vector holds. 'gray' (the paper): the unit-norm gray patch. 'colour'
         (*ours*): the gray patch and the blue, green and red patches, each unit-norm, side by
         side and scaled to unit norm together (4 patch_size**2 entries; a gray image gives
         four copies of its gray patch). Each plane's own normalisation cancels a change of
-        gain in each colour. The generative term reads the gray part.
+        gain in each colour. 'gradient' (*ours*): the gray patch and the patch of the gray
+        frame's gradient magnitude (3x3 Sobel), likewise (2 patch_size**2 entries). The
+        generative term reads the gray part.
     redetect_count : int
         Re-detection (*ours*; 0 = off, the paper). On a frame whose best candidate's code
         puts no weight on a positive template (eps_pos* = 1: the target looks like nothing
@@ -224,7 +226,7 @@ class TrackerParams:
     positive_sigma: float = bounded(1.0, 0, MAX_RADIUS)
     negative_push: float = bounded(0.25, 0, 2)
     patch_size: int = bounded(PATCH_SIZE, 4)
-    features: Literal["gray", "colour"] = "gray"
+    features: Literal["gray", "colour", "gradient"] = "gray"
 
     # -- coding (Algorithm 1) -------------------------------------------------------------
     dictionary_sizes: tuple[int, ...] = (5, 8, 10)
