@@ -62,7 +62,7 @@ import numpy as np
 
 from nrmlc import io
 from nrmlc.errors import ParameterError
-from nrmlc.tracker.params import ADDED_SWITCHES_OFF, TrackerParams
+from nrmlc.tracker.params import TrackerParams
 from nrmlc.tracker.loop import TrackResult, track_sequence
 
 #: Sources whose change can change a run's boxes. ``data`` is included because it
@@ -115,12 +115,18 @@ def frames_tracked(sequence, n_frames: int | None) -> int:
     return n if n_frames is None else max(1, min(n, int(n_frames)))
 
 
+#: Tracker switches added after runs were cached, with their off value. A run's key leaves such a
+#: switch out while it is off, so the runs cached before it existed keep their keys and
+#: ``experiments.screen --baseline-version`` can pair a new switch with them. Empty while the
+#: tracker has no such switch (round 19 used it for its five, then removed them).
+SWITCHES_ADDED_LATER: dict[str, object] = {}
+
+
 def params_for_key(params: TrackerParams) -> dict:
-    """The parameters as a run's key holds them: ``params.as_dict()`` without the switches that are
-    off and were added after runs were cached (:data:`nrmlc.tracker.params.ADDED_SWITCHES_OFF`)."""
-    values = params.as_dict()
-    return {name: value for name, value in values.items()
-            if not (name in ADDED_SWITCHES_OFF and value == ADDED_SWITCHES_OFF[name])}
+    """The parameters as a run's key holds them: ``params.as_dict()`` without the switches of
+    :data:`SWITCHES_ADDED_LATER` that are off."""
+    return {name: value for name, value in params.as_dict().items()
+            if not (name in SWITCHES_ADDED_LATER and value == SWITCHES_ADDED_LATER[name])}
 
 
 def description_key(description: dict) -> str:

@@ -130,6 +130,17 @@ def test_run_keys_are_pinned():
     assert "recentre_every" not in RunSpec(tiny_sequence(0)).description("v")
 
 
+def test_a_switch_added_later_stays_out_of_the_key_while_off(monkeypatch):
+    """A new switch, off, must leave the default's key as it was (so a screen can read the
+    default's runs cached before the switch existed); on, it enters the key."""
+    before = RunSpec(tiny_sequence(0), TrackerParams(), seed=0).key("v")
+    assert runner.params_for_key(TrackerParams()) == TrackerParams().as_dict()
+    monkeypatch.setattr(runner, "SWITCHES_ADDED_LATER", {"redetect_count": 300})
+    assert "redetect_count" not in runner.params_for_key(TrackerParams())
+    assert RunSpec(tiny_sequence(0), TrackerParams(), seed=0).key("v") != before  # the field left the key
+    assert runner.params_for_key(TrackerParams(redetect_count=0))["redetect_count"] == 0
+
+
 def test_frames_tracked_is_one_rule():
     sequence = tiny_sequence(0, n_frames=6)
     assert [runner.frames_tracked(sequence, n) for n in (None, 0, 3, 6, 100)] == [6, 1, 3, 6, 6]

@@ -136,32 +136,6 @@ def as_gray_frame(image: np.ndarray) -> np.ndarray:
     return frame
 
 
-def as_colour_planes(image) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The blue, green and red planes of an image :func:`as_gray_frame` accepts, scaled as it
-    scales (uint8 by 1/255, uint16 by 1/65535); a gray image gives its gray plane three times.
-
-    Returns
-    -------
-    (blue, green, red) : three (height, width) float32 arrays
-    """
-    if _is_pil_image(image):
-        image = np.asarray(image.convert("RGB"))[:, :, ::-1]  # PIL is RGB
-    image = np.asarray(image)
-    if image.ndim == 2 or image.shape[2] in (1, 2):
-        gray = to_gray_float32(image)
-        return gray, gray, gray
-    scale = _INTEGER_SCALE.get(image.dtype)
-    planes = image[:, :, :3].astype(np.float32) * np.float32(1.0 if scale is None else scale)
-    return tuple(np.ascontiguousarray(planes[:, :, channel]) for channel in range(3))
-
-
-def gradient_magnitude(gray: np.ndarray) -> np.ndarray:
-    """(H, W) float32: the magnitude of the 3x3 Sobel gradient of a gray frame (border reflected)."""
-    dx = cv2.Sobel(gray, cv2.CV_32F, 1, 0, ksize=3)
-    dy = cv2.Sobel(gray, cv2.CV_32F, 0, 1, ksize=3)
-    return np.ascontiguousarray(cv2.magnitude(dx, dy))
-
-
 def _is_pil_image(image) -> bool:
     """True for a PIL.Image without importing PIL (it is not a dependency)."""
     return type(image).__module__.startswith("PIL.") and hasattr(image, "convert") and hasattr(image, "mode")

@@ -27,13 +27,12 @@ Per frame:
 from __future__ import annotations
 
 import contextlib
-import dataclasses
 import threading
 from dataclasses import dataclass
 
 import numpy as np
 
-from nrmlc.data.image import as_colour_planes, as_gray_frame, gradient_magnitude
+from nrmlc.data.image import as_gray_frame
 from nrmlc.errors import ParameterError
 from nrmlc.geometry import (MIN_BOX_SIZE, as_box, box_to_state, clamp_states, clip_initial_box, state_to_affine,
                             state_to_box, usable_boxes)
@@ -236,15 +235,10 @@ class NRMLCTracker:
             self._busy.release()
 
     # -- templates -------------------------------------------------------
-    def patches(self, frame, states: np.ndarray) -> np.ndarray:
-        """The patch vectors the tracker codes for ``states`` (n, 6) in ``frame`` (a frame as
-        ``update`` sees it: (H, W) float32, or a tuple of such planes under ``features =
-        'colour'``): (n, planes * patch_size**2) float32, unit rows."""
-        affines = np.ascontiguousarray(state_to_affine(states))
-        if not isinstance(frame, tuple):
-            return warp_patches(frame, affines, self.params.patch_size)
-        parts = [warp_patches(plane, affines, self.params.patch_size) for plane in frame]
-        return np.ascontiguousarray(np.hstack(parts) * np.float32(1.0 / np.sqrt(len(parts))))
+    def patches(self, frame: np.ndarray, states: np.ndarray) -> np.ndarray:
+        """The patch vectors the tracker codes for ``states`` (n, 6) in ``frame`` (a frame
+        as ``update`` sees it): (n, patch_size**2) float32, unit rows."""
+        return warp_patches(frame, np.ascontiguousarray(state_to_affine(states)), self.params.patch_size)
 
     def _set_templates(self, positives: np.ndarray, negatives: np.ndarray,
                        kept_positives: np.ndarray | None = None) -> None:
@@ -278,17 +272,6 @@ class NRMLCTracker:
             states = negative_states(self.rng, state, p.n_negative, p.positive_radius, p.negative_radius)
         return self.patches(frame, states)
 
-    def _frame(self, image):
-        """``image`` as the patches are cut from it: the gray frame, or a tuple of (H, W)
-        float32 planes, (gray, blue, green, red) under ``features = 'colour'``, (gray, gradient
-        magnitude) under 'gradient'."""
-        gray = as_gray_frame(image)
-        if self.params.features == "colour":
-            return (gray,) + as_colour_planes(image)
-        if self.params.features == "gradient":
-            return gray, gradient_magnitude(gray)
-        return gray
-
     # -- public interface -----------------------------------------------
     def init(self, image, box) -> None:
         """Start tracking the target in ``box`` (1-based x, y, w, h) of ``image``
@@ -297,12 +280,11 @@ class NRMLCTracker:
             self._init(image, box)
 
     def _init(self, image, box) -> None:
-        frame = self._frame(image)
-        shape = frame[0].shape if isinstance(frame, tuple) else frame.shape
-        box = clip_initial_box(box, shape)
+        frame = as_gray_frame(image)
+        box = clip_initial_box(box, frame.shape)
         p = self.params
         self.rng = np.random.default_rng(self.seed)
-        self.frame_shape = shape
+        self.frame_shape = frame.shape
         self.state = box_to_state(box, p.patch_size)
         self.initial_box = box
         self.particles = None
@@ -332,10 +314,9 @@ class NRMLCTracker:
     def _update(self, image) -> np.ndarray:
         if self.state is None:
             raise ParameterError("call init(frame, box) before update(frame)")
-        frame = self._frame(image)
-        shape = frame[0].shape if isinstance(frame, tuple) else frame.shape
-        if shape != self.frame_shape:
-            raise ParameterError(f"frame is {shape[1]}x{shape[0]} but init() saw "
+        frame = as_gray_frame(image)
+        if frame.shape != self.frame_shape:
+            raise ParameterError(f"frame is {frame.shape[1]}x{frame.shape[0]} but init() saw "
                                  f"{self.frame_shape[1]}x{self.frame_shape[0]}")
         self.frame_index += 1
         result, coding, best = self.step(frame)
@@ -390,9 +371,6 @@ class NRMLCTracker:
             noise[:, 0:2] *= size[:, None]
         if translation_factor != 1.0:
             noise[:, 0:2] *= translation_factor
-        if p.hold_scale_when_lost and self.last is not None and self.last.error_positive >= REDETECT_TRIGGER:
-            noise[:, 2] = 0.0
-            noise[:, 4] = 0.0
         states[:, 0:2] += noise[:, 0:2]
         states[:, 2] *= np.exp(noise[:, 2])
         states[:, 3] += noise[:, 3]
@@ -437,17 +415,6 @@ class NRMLCTracker:
                       error_positive=error_positive, error_negative=error_negative,
                       log_confidence=log_confidence, similarity=similarity)
 
-    def _with_scale_prior(self, coding: Coding, states: np.ndarray) -> Coding:
-        """``coding`` with ``held_scale_prior`` added to its log h, when it is on and the last
-        frame held the target; ``states`` (n, 6) are the coded candidates'."""
-        sigma = self.params.held_scale_prior
-        if not sigma or self.last is None or self.last.error_positive >= self.params.update_error_threshold:
-            return coding
-        log_size = np.log(states[:, 2]) + 0.5 * np.log(states[:, 4])
-        initial = np.log(self.initial_box[2] * self.initial_box[3]) / 2 - np.log(self.params.patch_size)
-        prior = -0.5 * ((log_size - initial) / sigma) ** 2
-        return dataclasses.replace(coding, log_confidence=coding.log_confidence + prior)
-
     def _generative_similarity(self, candidates: np.ndarray, log_confidence: np.ndarray) -> np.ndarray:
         """The generative term's similarity (n,) of each candidate: the ``generative_candidates``
         most confident are coded locally, the others get the lowest of their similarities."""
@@ -470,7 +437,7 @@ class NRMLCTracker:
         """
         p = self.params
         states = self.sample_particles()
-        coding = self._with_scale_prior(self.encode(self.patches(frame, states)), states)
+        coding = self.encode(self.patches(frame, states))
         n_local = len(states)
         best = int(np.argmax(coding.log_confidence))
         searched = needs_search(p, coding.error_positive[best])

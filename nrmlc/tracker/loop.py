@@ -124,9 +124,7 @@ def track_sequence(sequence, params: TrackerParams | None = None, seed: int = 0,
         usable = usable_boxes(recentre_boxes)
     total = len(sequence) if n_frames is None else max(1, min(int(n_frames), len(sequence)))
     box = sequence.init_box if init_box is None else init_box
-    # Colour features need the stored frames; the gray ones are the sequence's own frames.
-    frames = ((sequence.raw_frame(i) for i in range(total)) if tracker.params.features == "colour"
-              else iter(sequence))
+    frames = iter(sequence)
     bar = None
     if progress:
         from tqdm import tqdm

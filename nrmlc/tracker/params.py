@@ -37,16 +37,6 @@ MAX_MOTION_SIGMA = (1000.0, 1000.0, 1.0, math.pi, 1.0, math.pi)
 NOT_ADOPTED = ("patch_normalization", "dictionaries", "wide_share", "wide_factor", "estimate_count",
                "velocity_damping", "antialias", "keep_initial_positives", "scale_prior")
 
-#: Switches added after runs were cached, with their off value (the earlier behaviour). A run's
-#: cache key leaves a switch out while it is off (``nrmlc.runner.params_for_key``), so the runs
-#: cached before it existed keep their keys.
-ADDED_SWITCHES_OFF = {"features": "gray", "hold_scale_when_lost": False, "held_scale_prior": 0.0}
-
-
-def n_planes(features: str) -> int:
-    """Image planes a patch vector is cut from (:attr:`TrackerParams.features`)."""
-    return {"colour": 4, "gradient": 2}.get(features, 1)
-
 
 def bounded(default, low=None, high=None, *, low_open: bool = False, high_open: bool = False):
     """A field with ``default`` whose value must lie between ``low`` and ``high`` (None: no bound;
@@ -111,12 +101,6 @@ class TrackerParams:
     confidence : {'corrected', 'literal'}
         'corrected': h = exp(-alpha (eps_pos - eps_neg)); 'literal': the printed
         h = 1 / exp(-alpha (eps_pos - eps_neg)) (see docs/DEVIATIONS.md, item 1).
-    held_scale_prior : float
-        *Ours* (0 = off: the paper). On a frame after one whose result could join the positives
-        (eps_pos* below ``update_error_threshold``: the target is held), log h gains
-        -0.5 (log(size / size_0) / ``held_scale_prior``)^2, size the geometric mean of the box's
-        width and height and size_0 the first box's: the scale is anchored on the frames whose
-        results feed the positives, where the drift of round 17 feeds itself.
     update_interval : int
         Templates are updated every this many frames (paper: 5, the default). Every frame with
         the threshold 0.15 (round 6) did not hold on the 36 development targets: -0.015 ±
@@ -161,19 +145,6 @@ class TrackerParams:
         'pixels': ``motion_sigmas[0:2]`` are image pixels. 'relative' (L1APG's
         ``draw_sample``): they are template pixels, i.e. multiplied by the target's
         size ``sqrt((w^2 + h^2) / 2) / patch_size``.
-    hold_scale_when_lost : bool
-        *Ours* (False: the paper). While the last frame's best candidate used no positive
-        template (eps_pos* = 1, the re-detection trigger: the target is not recognised), the
-        particles' scale and aspect get no noise, so a box that has lost its target keeps the
-        size it last held instead of drifting on the background (the collapse of round 17).
-    features : {'gray', 'colour', 'gradient'}
-        What a patch vector holds. 'gray' (the paper): the unit-norm gray patch. 'colour'
-        (*ours*): the gray patch and the blue, green and red patches, each unit-norm, side by
-        side and scaled to unit norm together (4 patch_size**2 entries; a gray image gives
-        four copies of its gray patch). Each plane's own normalisation cancels a change of
-        gain in each colour. 'gradient' (*ours*): the gray patch and the patch of the gray
-        frame's gradient magnitude (3x3 Sobel), likewise (2 patch_size**2 entries). The
-        generative term reads the gray part.
     redetect_count : int
         Re-detection (*ours*; 0 = off, the paper). On a frame whose best candidate's code
         puts no weight on a positive template (eps_pos* = 1: the target looks like nothing
@@ -215,7 +186,6 @@ class TrackerParams:
     motion_sigmas: tuple[float, ...] = (2.0, 2.0, 0.01, 0.0, 0.005, 0.0)
     propagation: Literal["condensation", "best"] = "condensation"
     translation_noise: Literal["relative", "pixels"] = "relative"
-    hold_scale_when_lost: bool = False
 
     # -- templates (Sec. 3) ---------------------------------------------------------------
     n_positive: int = bounded(50, 1)
@@ -226,7 +196,6 @@ class TrackerParams:
     positive_sigma: float = bounded(1.0, 0, MAX_RADIUS)
     negative_push: float = bounded(0.25, 0, 2)
     patch_size: int = bounded(PATCH_SIZE, 4)
-    features: Literal["gray", "colour", "gradient"] = "gray"
 
     # -- coding (Algorithm 1) -------------------------------------------------------------
     dictionary_sizes: tuple[int, ...] = (5, 8, 10)
@@ -238,7 +207,6 @@ class TrackerParams:
     # -- confidence (Algorithm 2, step 2.4) -----------------------------------------------
     alpha: float = bounded(25.0, 0, low_open=True)
     confidence: Literal["corrected", "literal"] = "corrected"
-    held_scale_prior: float = bounded(0.0, 0, 10)
 
     # -- template updates and occlusion (Algorithm 2, step 2.5) ---------------------------
     update_interval: int = bounded(5, 1)
@@ -313,7 +281,7 @@ class TrackerParams:
         """Bytes the largest per-frame arrays take, by the parameters that size them (an estimate
         with the copies a frame makes; the frame itself and the interpreter come on top)."""
         candidates = self.n_particles + self.redetect_count
-        vector = self.patch_size**2 * n_planes(self.features)
+        vector = self.patch_size**2
         templates = self.max_positive + self.n_negative
         local = ((self.patch_size - LOCAL_SIZE) // self.generative_step + 1) ** 2
         atoms_grid = ((self.patch_size - LOCAL_SIZE) // 2 + 1) ** 2
@@ -405,11 +373,11 @@ PRESETS: dict[str, dict] = {
 
 #: The fields by the part of the algorithm they govern (the sections of the class body).
 SECTIONS: dict[str, tuple[str, ...]] = {
-    "motion": ("n_particles", "motion_sigmas", "propagation", "translation_noise", "hold_scale_when_lost"),
+    "motion": ("n_particles", "motion_sigmas", "propagation", "translation_noise"),
     "templates": ("n_positive", "n_negative", "template_sampling", "positive_radius", "negative_radius",
-                  "positive_sigma", "negative_push", "patch_size", "features"),
+                  "positive_sigma", "negative_push", "patch_size"),
     "coding": ("dictionary_sizes", "coding", "lam", "beta", "n_iterations"),
-    "confidence": ("alpha", "confidence", "held_scale_prior"),
+    "confidence": ("alpha", "confidence"),
     "updates": ("update_interval", "max_positive", "update_error_threshold", "occlusion_detection",
                 "occlusion_max_negative", "coefficient_tolerance"),
     "redetection": ("redetect_count", "redetect_factor", "redetect_accept"),
