@@ -244,7 +244,9 @@ class NRMLCTracker:
         if not isinstance(frame, tuple):
             return warp_patches(frame, affines, self.params.patch_size)
         parts = [warp_patches(plane, affines, self.params.patch_size) for plane in frame]
-        return np.ascontiguousarray(np.hstack(parts) * np.float32(1.0 / np.sqrt(len(parts))))
+        weight = self.params.gray_weight
+        parts[0] = parts[0] * np.float32(weight)
+        return np.ascontiguousarray(np.hstack(parts) * np.float32(1.0 / np.sqrt(weight**2 + len(parts) - 1)))
 
     def _set_templates(self, positives: np.ndarray, negatives: np.ndarray,
                        kept_positives: np.ndarray | None = None) -> None:

@@ -40,7 +40,7 @@ NOT_ADOPTED = ("patch_normalization", "dictionaries", "wide_share", "wide_factor
 #: Switches added after runs were cached, with their off value (the earlier behaviour). A run's
 #: cache key leaves a switch out while it is off (``nrmlc.runner.params_for_key``), so the runs
 #: cached before it existed keep their keys.
-ADDED_SWITCHES_OFF = {"features": "gray", "hold_scale_when_lost": False, "held_scale_prior": 0.0}
+ADDED_SWITCHES_OFF = {"features": "gray", "gray_weight": 1.0, "hold_scale_when_lost": False, "held_scale_prior": 0.0}
 
 
 def n_planes(features: str) -> int:
@@ -227,6 +227,7 @@ class TrackerParams:
     negative_push: float = bounded(0.25, 0, 2)
     patch_size: int = bounded(PATCH_SIZE, 4)
     features: Literal["gray", "colour", "gradient"] = "gray"
+    gray_weight: float = bounded(1.0, 0, 100, low_open=True)
 
     # -- coding (Algorithm 1) -------------------------------------------------------------
     dictionary_sizes: tuple[int, ...] = (5, 8, 10)
