@@ -31,7 +31,7 @@ from experiments.tables import fmt, mean_std, save_figure, write_csv
 from nrmlc import io
 from nrmlc.geometry import usable_boxes
 from nrmlc.metrics import overlaps
-from nrmlc.runner import TrackerJob, params_for_key, sequence_identity
+from nrmlc.runner import TrackerJob
 from nrmlc.tracker.algorithm import NRMLCTracker
 from nrmlc.tracker.loop import track_sequence
 
@@ -86,9 +86,8 @@ class OracleGateRun(TrackerJob):
     label_template: ClassVar[str] = "oracle gate ({job.gate}) on {job.sequence.name}"
 
     def description(self, version: str) -> dict:
-        return {"sequence": sequence_identity(self.sequence), "params": params_for_key(self.params), "seed": int(self.seed),
-                "gate": self.gate, "oracle_iou": ORACLE_IOU, "n_frames": self.n_frames,
-                "oracle_version": ORACLE_VERSION, "code_version": version}
+        return self.tracker_description(version, gate=self.gate, oracle_iou=ORACLE_IOU, n_frames=self.n_frames,
+                                        oracle_version=ORACLE_VERSION)
 
     def execute(self) -> dict:
         n = self.frames()

@@ -26,7 +26,7 @@ from typing import ClassVar
 
 import numpy as np
 
-from nrmlc.runner import TrackerJob, params_for_key, sequence_identity
+from nrmlc.runner import TrackerJob
 from nrmlc.tracker.params import TrackerParams
 
 #: Bump when the recorded content changes (invalidates the collection cache).
@@ -196,10 +196,9 @@ class Collection(TrackerJob):
         return self.budget.max_frames
 
     def description(self, version: str) -> dict:
-        return {"sequence": sequence_identity(self.sequence), "params": params_for_key(self.params),
-                "seed": int(self.seed), "max_frames": self.budget.max_frames, "every": self.budget.every,
-                "n_candidates": self.budget.n_candidates, "collector": COLLECTOR_VERSION, "n_nearest": N_NEAREST,
-                "code_version": version}
+        return self.tracker_description(version, max_frames=self.budget.max_frames, every=self.budget.every,
+                                        n_candidates=self.budget.n_candidates, collector=COLLECTOR_VERSION,
+                                        n_nearest=N_NEAREST)
 
     def execute(self) -> dict:
         from nrmlc.tracker.loop import track_sequence

@@ -24,7 +24,7 @@ import numpy as np
 from experiments.grid import describe_params, json_report, script_entry
 from experiments.shared import ON_TARGET_IOU, blocks
 from experiments.tables import save_figure
-from nrmlc.runner import TrackerJob, frames_tracked, params_for_key, sequence_identity
+from nrmlc.runner import TrackerJob, frames_tracked
 
 STEM = "scale_likelihood"
 TITLE = "Scale drift: the likelihood across scale at the ground truth's centre"
@@ -59,9 +59,8 @@ class ScaleProfile(TrackerJob):
         return self.max_frames
 
     def description(self, version: str) -> dict:
-        return {"sequence": sequence_identity(self.sequence), "params": params_for_key(self.params),
-                "seed": int(self.seed), "max_frames": self.max_frames, "scales": list(SCALES),
-                "profile": PROFILE_VERSION, "code_version": version}
+        return self.tracker_description(version, max_frames=self.max_frames, scales=list(SCALES),
+                                        profile=PROFILE_VERSION)
 
     def execute(self) -> dict:
         from nrmlc.geometry import box_to_state, usable_boxes

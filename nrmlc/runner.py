@@ -195,6 +195,13 @@ class TrackerJob(CachedJob):
     def label(self) -> str:
         return self.label_template.format(job=self)
 
+    def tracker_description(self, version: str, **own) -> dict:
+        """What keys a run of the tracker: the sequence's content, the parameters as a key holds
+        them (:func:`params_for_key`), the seed and the code version, with the job's ``own``
+        entries (a job's :meth:`description` returns this)."""
+        return {"sequence": sequence_identity(self.sequence), "params": params_for_key(self.params),
+                "seed": int(self.seed), **own, "code_version": version}
+
 
 @dataclass(frozen=True)
 class RunSpec(CachedJob):
