@@ -370,7 +370,9 @@ class NRMLCTracker:
         if p.translation_noise == "relative":
             size = states[:, 2] * np.sqrt(0.5 * (1.0 + states[:, 4] ** 2))
             if p.translation_floor > 0:
-                sigmas = np.maximum(np.asarray(p.motion_sigmas[0:2]) * size[:, None], p.translation_floor)
+                sigmas = np.asarray(p.motion_sigmas[0:2])
+                # An axis without translation noise keeps none: the floor lifts noise, it adds none.
+                sigmas = np.where(sigmas > 0, np.maximum(sigmas * size[:, None], p.translation_floor), 0.0)
                 noise[:, 0:2] = standard[:, 0:2] * sigmas
             else:
                 noise[:, 0:2] *= size[:, None]

@@ -146,8 +146,8 @@ class TrackerParams:
         ``draw_sample``): they are template pixels, i.e. multiplied by the target's
         size ``sqrt((w^2 + h^2) / 2) / patch_size``.
     translation_floor : float
-        Under 'relative', the translation noise's std is at least this many image pixels
-        (0: no floor, the ``paper`` preset). *Ours*: 4, the lineage's fixed noise (IVT's and
+        Under 'relative', the translation noise's std is at least this many image pixels on an
+        axis whose ``motion_sigmas`` entry is not 0 (0: no floor, the ``paper`` preset). *Ours*: 4, the lineage's fixed noise (IVT's and
         SCM's ``affsig`` [4, 4, ...]): a small target's 2 template px (1/16 of its size) are
         fewer pixels than a fast step, a large target's are more and stay. Round 20,
         at seeds 10-14 (docs/findings/round-20-fresh-seeds.md).
