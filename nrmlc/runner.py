@@ -117,9 +117,10 @@ def frames_tracked(sequence, n_frames: int | None) -> int:
 
 #: Tracker switches added after runs were cached, with their off value. A run's key leaves such a
 #: switch out while it is off, so the runs cached before it existed keep their keys and
-#: ``experiments.screen --baseline-version`` can pair a new switch with them. Empty while the
-#: tracker has no such switch (round 19 used it for its five, then removed them).
-SWITCHES_ADDED_LATER: dict[str, object] = {}
+#: ``experiments.screen --baseline-version`` can pair a new switch with them (round 19 used it
+#: for its five switches, then removed them; round 20 for ``translation_floor``, whose 0 is the
+#: ``paper`` preset's and the default's before round 20).
+SWITCHES_ADDED_LATER: dict[str, object] = {"translation_floor": 0.0}
 
 
 def params_for_key(params: TrackerParams) -> dict:

@@ -192,7 +192,8 @@ def test_fast_steps_count_centre_moves_beyond_three_sigma(noise):
     from nrmlc.tracker.params import TrackerParams
 
     # 32x32 px boxes: a template pixel is 1 image pixel, so both noises are 2 px per frame.
-    params = TrackerParams(translation_noise=noise, motion_sigmas=(2.0, 2.0, 0.01, 0.0, 0.005, 0.0))
+    params = TrackerParams(translation_noise=noise, motion_sigmas=(2.0, 2.0, 0.01, 0.0, 0.005, 0.0),
+                           translation_floor=0.0)
     sequence = _track([1.0, 7.0, 100.0, 100.0, 5.0, 6.1, 0.0])
     share, largest = script.fast_steps(sequence, params)
     # Steps between annotated frames: 0-1, 1-2, 2-4 (over the unannotated frame 3: 200 px in 2
@@ -201,6 +202,9 @@ def test_fast_steps_count_centre_moves_beyond_three_sigma(noise):
     # Twice the box: twice the relative noise, the same pixel noise.
     share_big, _ = script.fast_steps(_track([1.0, 7.0, 100.0, 100.0, 5.0, 6.1, 0.0], (64.0, 64.0)), params)
     assert share_big == pytest.approx(1 / 6 if noise == "relative" else 3 / 6)
+    if noise == "relative":  # a 4 px floor lifts the 32 px box's 2 px to 4: 70.7 / 2 sigma is the only fast step
+        floored, largest_floored = script.fast_steps(sequence, params.replace(translation_floor=4.0))
+        assert floored == pytest.approx(1 / 6) and largest_floored == pytest.approx(100 / np.sqrt(2) / 2)
 
 
 def test_shortfalls_name_the_mechanisms_past_their_thresholds():

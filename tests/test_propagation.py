@@ -120,7 +120,7 @@ def test_relative_translation_noise_scales_with_the_target():
     spreads = []
     for box in ((60, 60, 16, 16), (60, 60, 64, 64)):
         tracker = NRMLCTracker(seed=0, n_particles=4000, translation_noise="relative", propagation="best",
-                               motion_sigmas=(2.0, 2.0, 0, 0, 0, 0))
+                               motion_sigmas=(2.0, 2.0, 0, 0, 0, 0), translation_floor=0.0)
         tracker.init(sequence.frame(0), box)
         spreads.append(np.std(tracker.sample_particles()[:, 0]))
     # 2 template pixels: 2 * 16/32 = 1 px and 2 * 64/32 = 4 px.

@@ -365,10 +365,17 @@ class NRMLCTracker:
         """Add the motion model's noise to ``states`` (n, 6) in place, with the translation
         noise ``translation_factor`` times larger (re-detection); clamp them."""
         p = self.params
-        noise = self.rng.standard_normal((len(states), 6)) * np.asarray(p.motion_sigmas)
+        standard = self.rng.standard_normal((len(states), 6))
+        noise = standard * np.asarray(p.motion_sigmas)
         if p.translation_noise == "relative":
             size = states[:, 2] * np.sqrt(0.5 * (1.0 + states[:, 4] ** 2))
-            noise[:, 0:2] *= size[:, None]
+            if p.translation_floor > 0:
+                sigmas = np.asarray(p.motion_sigmas[0:2])
+                # An axis without translation noise keeps none: the floor lifts noise, it adds none.
+                sigmas = np.where(sigmas > 0, np.maximum(sigmas * size[:, None], p.translation_floor), 0.0)
+                noise[:, 0:2] = standard[:, 0:2] * sigmas
+            else:
+                noise[:, 0:2] *= size[:, None]
         if translation_factor != 1.0:
             noise[:, 0:2] *= translation_factor
         states[:, 0:2] += noise[:, 0:2]

@@ -145,6 +145,12 @@ class TrackerParams:
         'pixels': ``motion_sigmas[0:2]`` are image pixels. 'relative' (L1APG's
         ``draw_sample``): they are template pixels, i.e. multiplied by the target's
         size ``sqrt((w^2 + h^2) / 2) / patch_size``.
+    translation_floor : float
+        Under 'relative', the translation noise's std is at least this many image pixels on an
+        axis whose ``motion_sigmas`` entry is not 0 (0: no floor, the ``paper`` preset). *Ours*: 4, the lineage's fixed noise (IVT's and
+        SCM's ``affsig`` [4, 4, ...]): a small target's 2 template px (1/16 of its size) are
+        fewer pixels than a fast step, a large target's are more and stay. Round 20,
+        at seeds 10-14 (docs/findings/round-20-fresh-seeds.md).
     redetect_count : int
         Re-detection (*ours*; 0 = off, the paper). On a frame whose best candidate's code
         puts no weight on a positive template (eps_pos* = 1: the target looks like nothing
@@ -186,6 +192,7 @@ class TrackerParams:
     motion_sigmas: tuple[float, ...] = (2.0, 2.0, 0.01, 0.0, 0.005, 0.0)
     propagation: Literal["condensation", "best"] = "condensation"
     translation_noise: Literal["relative", "pixels"] = "relative"
+    translation_floor: float = bounded(4.0, 0, MAX_MOTION_SIGMA[0])
 
     # -- templates (Sec. 3) ---------------------------------------------------------------
     n_positive: int = bounded(50, 1)
@@ -367,13 +374,13 @@ PRESETS: dict[str, dict] = {
     "default": {},
     "paper": dict(template_sampling="annulus", propagation="condensation", alpha=2.5,
                   update_interval=5, update_error_threshold=0.1, redetect_count=0,
-                  generative_weight=0.0, n_particles=600),
+                  generative_weight=0.0, n_particles=600, translation_floor=0.0),
 }
 
 
 #: The fields by the part of the algorithm they govern (the sections of the class body).
 SECTIONS: dict[str, tuple[str, ...]] = {
-    "motion": ("n_particles", "motion_sigmas", "propagation", "translation_noise"),
+    "motion": ("n_particles", "motion_sigmas", "propagation", "translation_noise", "translation_floor"),
     "templates": ("n_positive", "n_negative", "template_sampling", "positive_radius", "negative_radius",
                   "positive_sigma", "negative_push", "patch_size"),
     "coding": ("dictionary_sizes", "coding", "lam", "beta", "n_iterations"),
