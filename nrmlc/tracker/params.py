@@ -56,9 +56,8 @@ class TrackerParams:
     """All parameters of the NRMLC tracker (Sec. 3 and 4 of the paper).
 
     Defaults are the paper's where it gives a value; the others (marked *ours*)
-    are documented choices, identical for every sequence. The extensions that are off
-    by default were screened on the development sequences and not adopted
-    (docs/FINDINGS.md, "Choosing the defaults").
+    are documented choices, identical for every sequence; what was measured and not adopted
+    is listed in docs/FINDINGS.md.
 
     Attributes
     ----------
