@@ -65,12 +65,18 @@ def configuration(preset: str, assignments: list[str]) -> TrackerParams:
 
 def default_roots() -> list[Path]:
     """The data roots used when ``--data`` is not given: ``$NRMLC_DATA`` (else the shared
-    sequences) and ``$NRMLC_MORE_DATA`` (else ``../devdata/sequences``), those that exist."""
+    sequences) and ``$NRMLC_MORE_DATA`` (else ``../devdata/sequences``), those that exist; one
+    warning line when none does."""
     import os
 
     first = data_root_from_env() or str(DEFAULT_DATA)
     more = os.environ.get(MORE_DATA_ENV, "").strip() or str(DEFAULT_MORE_DATA)
-    return [Path(p) for p in dict.fromkeys((first, more)) if Path(p).is_dir()]
+    candidates = list(dict.fromkeys((first, more)))
+    roots = [Path(p) for p in candidates if Path(p).is_dir()]
+    if not roots:
+        print(f"warning: no development data at {' or '.join(candidates)} (give --data, $NRMLC_DATA or "
+              f"${MORE_DATA_ENV}); only the synthetic suite runs", file=sys.stderr)
+    return roots
 
 
 def parse_roots(text: str | None) -> list[Path]:

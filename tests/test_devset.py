@@ -111,6 +111,18 @@ def test_sequences_come_from_several_roots(tmp_path):
         devset.parse_roots(str(tmp_path / "nowhere"))
 
 
+def test_no_default_data_root_is_said_in_one_warning_line(tmp_path, monkeypatch, capsys):
+    from experiments import devset
+
+    monkeypatch.delenv("NRMLC_DATA", raising=False)
+    monkeypatch.delenv(devset.MORE_DATA_ENV, raising=False)
+    monkeypatch.setattr(devset, "DEFAULT_DATA", tmp_path / "no-shared")
+    monkeypatch.setattr(devset, "DEFAULT_MORE_DATA", tmp_path / "no-devdata")
+    assert devset.parse_roots(None) == []
+    lines = capsys.readouterr().err.strip().splitlines()
+    assert len(lines) == 1 and "no development data" in lines[0] and "no-devdata" in lines[0]
+
+
 def test_screen_gives_each_variant_its_paired_differences_and_verdict(tmp_path, capsys):
     from experiments import screen
 
