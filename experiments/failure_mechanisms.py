@@ -282,9 +282,8 @@ def fast_steps(sequence, params) -> tuple[float, float]:
     sequence : Sequence
         Its ground truth, (n_frames, 4) 1-based ``(x, y, w, h)``, NaN rows unannotated.
     params : TrackerParams
-        ``motion_sigmas[0:2]``, ``translation_noise`` and ``translation_floor`` give the per-frame
-        std per axis: image pixels, or template pixels of the box ``sqrt((w^2 + h^2) / 2) /
-        patch_size`` but at least ``translation_floor`` image pixels.
+        Its per-frame translation std per axis (:meth:`TrackerParams.translation_sigmas`), for
+        the box before each step.
 
     Returns
     -------
@@ -300,10 +299,8 @@ def fast_steps(sequence, params) -> tuple[float, float]:
     before, after = truth[annotated[:-1]], truth[annotated[1:]]
     gap = np.diff(annotated).astype(np.float64)
     step = (after[:, :2] + after[:, 2:] / 2) - (before[:, :2] + before[:, 2:] / 2)
-    sigma = np.asarray(params.motion_sigmas[:2], dtype=np.float64)[None, :] * np.sqrt(gap)[:, None]
-    if params.translation_noise == "relative":
-        size = np.sqrt(0.5 * (before[:, 2] ** 2 + before[:, 3] ** 2)) / params.patch_size
-        sigma = np.maximum(sigma * size[:, None], params.translation_floor * np.sqrt(gap)[:, None])
+    size = np.sqrt(0.5 * (before[:, 2] ** 2 + before[:, 3] ** 2)) / params.patch_size
+    sigma = params.translation_sigmas(size) * np.sqrt(gap)[:, None]
     with np.errstate(divide="ignore", invalid="ignore"):
         reach = np.sqrt(((step / sigma) ** 2).sum(axis=1))
     return float(np.mean(reach > FAST_SIGMAS)), float(np.max(reach))

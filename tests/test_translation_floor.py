@@ -28,3 +28,14 @@ def test_a_small_target_gets_the_floor_and_a_large_one_its_relative_noise():
 
 def test_the_floor_is_the_lineages_4_px_by_default_and_off_in_the_paper_preset():
     assert TrackerParams().translation_floor == 4.0 and TrackerParams.paper().translation_floor == 0.0
+
+
+def test_translation_sigmas_per_axis_against_a_naive_oracle():
+    sizes = np.array([0.5, 1.0, 3.0, 10.0])
+    params = TrackerParams(motion_sigmas=(2.0, 0.0, 0.01, 0.0, 0.005, 0.0), translation_floor=4.0)
+    expected = np.array([[max(2.0 * s, 4.0), 0.0] for s in sizes])  # no noise on y: the floor adds none
+    np.testing.assert_array_equal(params.translation_sigmas(sizes), expected)
+    np.testing.assert_array_equal(params.replace(translation_floor=0.0).translation_sigmas(sizes),
+                                  np.array([[2.0 * s, 0.0] for s in sizes]))
+    np.testing.assert_array_equal(params.replace(translation_noise="pixels").translation_sigmas(sizes),
+                                  np.tile([2.0, 0.0], (4, 1)))

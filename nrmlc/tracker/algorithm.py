@@ -370,11 +370,8 @@ class NRMLCTracker:
         if p.translation_noise == "relative":
             size = states[:, 2] * np.sqrt(0.5 * (1.0 + states[:, 4] ** 2))
             if p.translation_floor > 0:
-                sigmas = np.asarray(p.motion_sigmas[0:2])
-                # An axis without translation noise keeps none: the floor lifts noise, it adds none.
-                sigmas = np.where(sigmas > 0, np.maximum(sigmas * size[:, None], p.translation_floor), 0.0)
-                noise[:, 0:2] = standard[:, 0:2] * sigmas
-            else:
+                noise[:, 0:2] = standard[:, 0:2] * p.translation_sigmas(size)
+            else:  # kept apart so that without the floor the boxes stay those of the paper preset's runs
                 noise[:, 0:2] *= size[:, None]
         if translation_factor != 1.0:
             noise[:, 0:2] *= translation_factor

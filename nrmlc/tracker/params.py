@@ -146,10 +146,11 @@ class TrackerParams:
         size ``sqrt((w^2 + h^2) / 2) / patch_size``.
     translation_floor : float
         Under 'relative', the translation noise's std is at least this many image pixels on an
-        axis whose ``motion_sigmas`` entry is not 0 (0: no floor, the ``paper`` preset). *Ours*: 4, the lineage's fixed noise (IVT's and
-        SCM's ``affsig`` [4, 4, ...]): a small target's 2 template px (1/16 of its size) are
-        fewer pixels than a fast step, a large target's are more and stay. Round 20,
-        at seeds 10-14 (docs/findings/round-20-fresh-seeds.md).
+        axis whose ``motion_sigmas`` entry is not 0 (0: no floor, the ``paper`` preset;
+        :meth:`translation_sigmas`). *Ours*: 4, the lineage's fixed noise (IVT's and SCM's
+        ``affsig`` [4, 4, ...]): a small target's 2 template px (1/16 of its size) are fewer
+        pixels than a fast step, a large target's are more and stay. Round 20, at seeds 10-14
+        (docs/findings/round-20-fresh-seeds.md).
     redetect_count : int
         Re-detection (*ours*; 0 = off, the paper). On a frame whose best candidate's code
         puts no weight on a positive template (eps_pos* = 1: the target looks like nothing
@@ -331,6 +332,21 @@ class TrackerParams:
     @property
     def k_max(self) -> int:
         return max(self.dictionary_sizes)
+
+    def translation_sigmas(self, sizes: np.ndarray) -> np.ndarray:
+        """The per-frame translation noise's std in image pixels, (n, 2) for the x and y axes,
+        of targets whose template pixel is ``sizes`` (n,) image pixels (``translation_noise``,
+        ``translation_floor``). The tracker's motion model and the failure measures' reach both
+        read it."""
+        sigmas = np.asarray(self.motion_sigmas[0:2], dtype=np.float64)
+        sizes = np.asarray(sizes, dtype=np.float64)
+        if self.translation_noise != "relative":
+            return np.broadcast_to(sigmas, (len(sizes), 2)).copy()
+        scaled = sigmas * sizes[:, None]
+        if self.translation_floor > 0:
+            # An axis without translation noise keeps none: the floor lifts noise, it adds none.
+            scaled = np.where(sigmas > 0, np.maximum(scaled, self.translation_floor), 0.0)
+        return scaled
 
     @property
     def ridges(self) -> tuple[float, float]:
