@@ -5,7 +5,8 @@ from nrmlc import NRMLCTracker, TrackerParams
 from nrmlc.data import SyntheticSequence, SyntheticSpec
 
 
-def _spread(floor: float, size_scale: float) -> float:
+def _spread(floor: float, size_scale: float) -> tuple[float, float]:
+    """(std of the diffused centres, 2 template px) in image px for the target scaled by size_scale."""
     sequence = SyntheticSequence(SyntheticSpec(name="t", seed=3, n_frames=2))
     tracker = NRMLCTracker(seed=0, n_particles=20, translation_floor=floor)
     tracker.init(sequence.raw_frame(0), sequence.init_box)
