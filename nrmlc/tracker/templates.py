@@ -62,6 +62,28 @@ def negative_states(rng: np.random.Generator, state: np.ndarray, n: int, inner: 
     return shifted_states(state, offsets_in_annulus(rng, n, inner, outer))
 
 
+#: The scale factors of ``shrunk_negatives`` (of the target's own scale): drawn uniformly, so each
+#: such negative is the target's inside, a box that has begun to collapse onto it.
+SHRUNK_NEGATIVE_SCALES = (0.5, 0.8)
+
+
+def shrink_states(rng: np.random.Generator, states: np.ndarray, state: np.ndarray, share: float,
+                  sigma: float) -> np.ndarray:
+    """``states`` (n, 6) with their last ``round(share * n)`` rows replaced, in place, by boxes about
+    the target's centre (N(0, sigma^2) image px) at :data:`SHRUNK_NEGATIVE_SCALES` of its scale.
+
+    Without them no negative is a box inside the target, so nothing in the discriminative score
+    tells a box that has shrunk onto the target from the target itself (docs/DEVIATIONS.md).
+    """
+    n_shrunk = int(round(share * len(states)))
+    if n_shrunk == 0:
+        return states
+    shrunk = scm_positive_states(rng, state, n_shrunk, sigma)
+    shrunk[:, 2] *= rng.uniform(*SHRUNK_NEGATIVE_SCALES, size=n_shrunk)
+    states[len(states) - n_shrunk:] = shrunk
+    return states
+
+
 #: SCM's push-out zones (fractions of the negative std) at initialisation
 #: (``affineTrainG.m``: ``back = round(sigma/4)``) and at updates (``updateDic.m``: ``/5``).
 SCM_PUSH_INIT = 0.25
