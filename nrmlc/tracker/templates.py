@@ -62,25 +62,33 @@ def negative_states(rng: np.random.Generator, state: np.ndarray, n: int, inner: 
     return shifted_states(state, offsets_in_annulus(rng, n, inner, outer))
 
 
-#: The scale factors of ``shrunk_negatives`` (of the target's own scale): drawn uniformly, so each
-#: such negative is the target's inside, a box that has begun to collapse onto it.
+#: The scale factors (of the target's own scale) of ``shrunk_negatives`` and ``grown_negatives``,
+#: drawn uniformly: a box inside the target (one that has begun to collapse onto it) and a box
+#: that holds it with a ring of background, each 1.25-2 times off in size.
 SHRUNK_NEGATIVE_SCALES = (0.5, 0.8)
+GROWN_NEGATIVE_SCALES = (1.25, 2.0)
 
 
-def shrink_states(rng: np.random.Generator, states: np.ndarray, state: np.ndarray, share: float,
-                  sigma: float) -> np.ndarray:
-    """``states`` (n, 6) with their last ``round(share * n)`` rows replaced, in place, by boxes about
-    the target's centre (N(0, sigma^2) image px) at :data:`SHRUNK_NEGATIVE_SCALES` of its scale.
+def rescale_negatives(rng: np.random.Generator, states: np.ndarray, state: np.ndarray, shrunk_share: float,
+                      grown_share: float, sigma: float) -> np.ndarray:
+    """``states`` (n, 6) with their last ``round(shrunk_share * n)`` rows, and the
+    ``round(grown_share * n)`` before them, replaced in place by boxes about the target's centre
+    (N(0, sigma^2) image px) at :data:`SHRUNK_NEGATIVE_SCALES` (:data:`GROWN_NEGATIVE_SCALES`) of
+    its scale.
 
-    Without them no negative is a box inside the target, so nothing in the discriminative score
-    tells a box that has shrunk onto the target from the target itself (docs/DEVIATIONS.md).
+    SCM's negatives are the target's box moved, all at its scale: none is a box inside the
+    target, so nothing in eps_pos - eps_neg tells a box shrinking onto the target from the
+    target itself (docs/findings/round-22-shrunk-negatives.md).
     """
-    n_shrunk = int(round(share * len(states)))
-    if n_shrunk == 0:
-        return states
-    shrunk = scm_positive_states(rng, state, n_shrunk, sigma)
-    shrunk[:, 2] *= rng.uniform(*SHRUNK_NEGATIVE_SCALES, size=n_shrunk)
-    states[len(states) - n_shrunk:] = shrunk
+    end = len(states)
+    for share, scales in ((shrunk_share, SHRUNK_NEGATIVE_SCALES), (grown_share, GROWN_NEGATIVE_SCALES)):
+        count = int(round(share * len(states)))
+        if count == 0:
+            continue
+        rows = scm_positive_states(rng, state, count, sigma)
+        rows[:, 2] *= rng.uniform(*scales, size=count)
+        states[end - count:end] = rows
+        end -= count
     return states
 
 
