@@ -43,7 +43,7 @@ from nrmlc.tracker.generative import LocalHistogramModel
 from nrmlc.tracker.params import TrackerParams
 from nrmlc.tracker.redetect import REDETECT_TRIGGER, needs_search, search
 from nrmlc.tracker.templates import (SCM_PUSH_INIT, SCM_PUSH_UPDATE, negative_states, positive_states,
-                                     rescale_negatives, scm_negative_states, scm_positive_states)
+                                     scm_negative_states, scm_positive_states)
 
 @dataclass(frozen=True)
 class Coding:
@@ -270,9 +270,6 @@ class NRMLCTracker:
             states = scm_negative_states(self.rng, state, p.n_negative, p.patch_size, push)
         else:
             states = negative_states(self.rng, state, p.n_negative, p.positive_radius, p.negative_radius)
-        if p.shrunk_negatives > 0 or p.grown_negatives > 0:
-            states = rescale_negatives(self.rng, states, state, p.shrunk_negatives, p.grown_negatives,
-                                       p.positive_sigma)
         return self.patches(frame, states)
 
     # -- public interface -----------------------------------------------

@@ -134,11 +134,6 @@ class TrackerParams:
         1/5. Larger values keep the negatives off the target.
     positive_sigma : float
         Std (image pixels) of the positive template centres under 'scm' (SCM: 1).
-    shrunk_negatives, grown_negatives : float
-        *Ours* (0 = off: the paper and SCM). The shares of the negatives that are boxes about the
-        target's centre (jittered as the positives) at 0.5-0.8 (shrunk) and 1.25-2 (grown) of its
-        scale (``nrmlc.tracker.templates.rescale_negatives``), so a box shrinking onto the target,
-        or growing over it, scores as background does.
     propagation : {'condensation', 'best'}
         'condensation' is eq. (1) as IVT's ``estwarp_condens.m`` implements it: the
         particles are resampled in proportion to their confidence h, then diffused by
@@ -207,8 +202,6 @@ class TrackerParams:
     negative_radius: float = 16.0
     positive_sigma: float = bounded(1.0, 0, MAX_RADIUS)
     negative_push: float = bounded(0.25, 0, 2)
-    shrunk_negatives: float = bounded(0.0, 0, 1)
-    grown_negatives: float = bounded(0.0, 0, 1)
     patch_size: int = bounded(PATCH_SIZE, 4)
 
     # -- coding (Algorithm 1) -------------------------------------------------------------
@@ -272,9 +265,6 @@ class TrackerParams:
             _fail("n_negative" if self.n_negative > self.max_positive else "max_positive",
                   f"max_positive + n_negative must be at most {MAX_TEMPLATES} (the template Gram is "
                   f"their square), got {self.max_positive} + {self.n_negative}")
-        if self.shrunk_negatives + self.grown_negatives > 1:
-            _fail("grown_negatives", f"shrunk_negatives + grown_negatives must be at most 1 (shares of the "
-                                     f"negatives), got {self.shrunk_negatives} + {self.grown_negatives}")
         if not 0 <= self.positive_radius < self.negative_radius:
             _fail("negative_radius", f"need 0 <= positive_radius < negative_radius, got "
                                      f"{self.positive_radius} and {self.negative_radius}")
@@ -407,8 +397,7 @@ PRESETS: dict[str, dict] = {
 SECTIONS: dict[str, tuple[str, ...]] = {
     "motion": ("n_particles", "motion_sigmas", "propagation", "translation_noise", "translation_floor"),
     "templates": ("n_positive", "n_negative", "template_sampling", "positive_radius", "negative_radius",
-                  "positive_sigma", "negative_push", "shrunk_negatives",
-                  "grown_negatives", "patch_size"),
+                  "positive_sigma", "negative_push", "patch_size"),
     "coding": ("dictionary_sizes", "coding", "lam", "beta", "n_iterations"),
     "confidence": ("alpha", "confidence"),
     "updates": ("update_interval", "max_positive", "update_error_threshold", "occlusion_detection",

@@ -62,36 +62,6 @@ def negative_states(rng: np.random.Generator, state: np.ndarray, n: int, inner: 
     return shifted_states(state, offsets_in_annulus(rng, n, inner, outer))
 
 
-#: The scale factors (of the target's own scale) of ``shrunk_negatives`` and ``grown_negatives``,
-#: drawn uniformly: a box inside the target (one that has begun to collapse onto it) and a box
-#: that holds it with a ring of background, each 1.25-2 times off in size.
-SHRUNK_NEGATIVE_SCALES = (0.5, 0.8)
-GROWN_NEGATIVE_SCALES = (1.25, 2.0)
-
-
-def rescale_negatives(rng: np.random.Generator, states: np.ndarray, state: np.ndarray, shrunk_share: float,
-                      grown_share: float, sigma: float) -> np.ndarray:
-    """``states`` (n, 6) with their last ``round(shrunk_share * n)`` rows, and the
-    ``round(grown_share * n)`` before them, replaced in place by boxes about the target's centre
-    (N(0, sigma^2) image px) at :data:`SHRUNK_NEGATIVE_SCALES` (:data:`GROWN_NEGATIVE_SCALES`) of
-    its scale.
-
-    SCM's negatives are the target's box moved, all at its scale: none is a box inside the
-    target, so nothing in eps_pos - eps_neg tells a box shrinking onto the target from the
-    target itself (docs/findings/round-22-shrunk-negatives.md).
-    """
-    end = len(states)
-    for share, scales in ((shrunk_share, SHRUNK_NEGATIVE_SCALES), (grown_share, GROWN_NEGATIVE_SCALES)):
-        count = int(round(share * len(states)))
-        if count == 0:
-            continue
-        rows = scm_positive_states(rng, state, count, sigma)
-        rows[:, 2] *= rng.uniform(*scales, size=count)
-        states[end - count:end] = rows
-        end -= count
-    return states
-
-
 #: SCM's push-out zones (fractions of the negative std) at initialisation
 #: (``affineTrainG.m``: ``back = round(sigma/4)``) and at updates (``updateDic.m``: ``/5``).
 SCM_PUSH_INIT = 0.25
