@@ -5,6 +5,9 @@
 #       SEEDS=5 SWEEP_SEEDS=2 ABLATION_SEEDS=1 JOBS=2 MAX_FRAMES=N ONLY=script,script
 #       PEERS=dir (default <DATA>/../peer_results) DRY_RUN=1 (print the grid and stop)
 #       DASK=tcp://host:8786 (run the grid on a Dask cluster; pip install -e .[cluster])
+#       NUMBA_TARGET=znver4 (compile the kernels for that CPU, with a numba cache and a run cache of its
+#       own: znver4 reproduces the committed figures/ bit for bit on a CPU with AVX-512;
+#       docs/RELIABILITY.md#determinism)
 #   make test                    the linter (ruff) and the test suite (what CI runs)
 #   make theorem                 numeric checks of Theorem 1 (seconds)
 #   make bench [DATA=path]       kernel and tracker timings -> out/figures/bench.md (OUT=figures: committed)
@@ -29,6 +32,9 @@ DRY_RUN     ?=
 STAMP       := $(VENV)/.installed
 TEST_STAMP  := $(VENV)/.installed-test
 DASK        ?=
+NUMBA_TARGET ?=
+# numba's CPU name and its own default features (NUMBA_CPU_FEATURES empty), not the host's
+TARGET_ENV  := $(if $(NUMBA_TARGET),NUMBA_CPU_NAME=$(NUMBA_TARGET) NUMBA_CPU_FEATURES= NUMBA_CACHE_DIR=.cache/numba-$(NUMBA_TARGET))
 
 export PYTHONHASHSEED := 0
 
@@ -60,7 +66,7 @@ test: $(TEST_STAMP)
 	$(PY) -m pytest
 
 figures: $(STAMP)
-	$(PY) -m experiments.run_all $(if $(DATA),--data "$(DATA)") $(if $(OUT),--out "$(OUT)") \
+	$(TARGET_ENV) $(PY) -m experiments.run_all $(if $(NUMBA_TARGET),--cache .cache/runs-$(NUMBA_TARGET)) $(if $(DATA),--data "$(DATA)") $(if $(OUT),--out "$(OUT)") \
 	    $(if $(SEQUENCES),--sequences "$(SEQUENCES)") $(if $(PEERS),--peers "$(PEERS)") \
 	    $(if $(SEEDS),--seeds $(SEEDS)) $(if $(SWEEP_SEEDS),--sweep-seeds $(SWEEP_SEEDS)) \
 	    $(if $(ABLATION_SEEDS),--ablation-seeds $(ABLATION_SEEDS)) $(if $(JOBS),--jobs $(JOBS)) \
