@@ -27,7 +27,6 @@ Per frame:
 from __future__ import annotations
 
 import contextlib
-import dataclasses
 import threading
 from dataclasses import dataclass
 
@@ -199,8 +198,6 @@ class NRMLCTracker:
         self.frame_index = -1
         self.state: np.ndarray | None = None
         self.last: FrameResult | None = None
-        #: Consecutive frames so far whose estimate had eps_pos* at the re-detection trigger.
-        self.lost_frames = 0
         #: The last frame's :class:`Coding` of every candidate (set in ``update`` for observers
         #: such as experiments/internals.py; the algorithm never reads it).
         self.last_coding: Coding | None = None
@@ -301,7 +298,6 @@ class NRMLCTracker:
                                                   p.generative_step)
         self.frame_index = 0
         self.last = None
-        self.lost_frames = 0
 
     def update(self, image) -> np.ndarray:
         """Track into the next frame; returns the 1-based ``(x, y, w, h)`` box.
@@ -379,11 +375,6 @@ class NRMLCTracker:
                 noise[:, 0:2] *= size[:, None]
         if translation_factor != 1.0:
             noise[:, 0:2] *= translation_factor
-        if 0 < self.lost_frames <= p.hold_scale_lost_frames:
-            # While the positives do not describe any candidate, the likelihood says nothing
-            # about the scale, and a cloud free to shrink settles on smaller boxes of background.
-            noise[:, 2] = 0.0
-            noise[:, 4] = 0.0
         states[:, 0:2] += noise[:, 0:2]
         states[:, 2] *= np.exp(noise[:, 2])
         states[:, 3] += noise[:, 3]
@@ -428,20 +419,6 @@ class NRMLCTracker:
                       error_positive=error_positive, error_negative=error_negative,
                       log_confidence=log_confidence, similarity=similarity)
 
-    def _with_scale_prior(self, coding: Coding, states: np.ndarray) -> Coding:
-        """``coding`` with ``held_scale_prior`` added to its log h when it is on and the last
-        frame held the target; ``states`` (n, 6) are the coded candidates'."""
-        p = self.params
-        if not p.held_scale_prior or self.last is None or self.last.error_positive >= p.update_error_threshold:
-            return coding
-        log_size = np.log(states[:, 2]) + 0.5 * np.log(states[:, 4])
-        initial = np.log(self.initial_box[2] * self.initial_box[3]) / 2 - np.log(p.patch_size)
-        offset = log_size - initial
-        if p.held_scale_prior_side == "below":
-            offset = np.minimum(offset, 0.0)
-        prior = -0.5 * (offset / p.held_scale_prior) ** 2
-        return dataclasses.replace(coding, log_confidence=coding.log_confidence + prior)
-
     def _generative_similarity(self, candidates: np.ndarray, log_confidence: np.ndarray) -> np.ndarray:
         """The generative term's similarity (n,) of each candidate: the ``generative_candidates``
         most confident are coded locally, the others get the lowest of their similarities."""
@@ -464,7 +441,7 @@ class NRMLCTracker:
         """
         p = self.params
         states = self.sample_particles()
-        coding = self._with_scale_prior(self.encode(self.patches(frame, states)), states)
+        coding = self.encode(self.patches(frame, states))
         n_local = len(states)
         best = int(np.argmax(coding.log_confidence))
         searched = needs_search(p, coding.error_positive[best])
@@ -491,7 +468,6 @@ class NRMLCTracker:
             redetect_searched=bool(searched), redetected=best >= n_local,
         )
         self.last = result
-        self.lost_frames = self.lost_frames + 1 if result.error_positive >= REDETECT_TRIGGER else 0
         return result, coding, best
 
     def _update_templates(self, frame: np.ndarray, result: FrameResult, new: np.ndarray) -> None:

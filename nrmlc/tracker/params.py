@@ -100,13 +100,6 @@ class TrackerParams:
     confidence : {'corrected', 'literal'}
         'corrected': h = exp(-alpha (eps_pos - eps_neg)); 'literal': the printed
         h = 1 / exp(-alpha (eps_pos - eps_neg)) (see docs/DEVIATIONS.md, item 1).
-    held_scale_prior : float
-        *Ours* (0 = off: the paper). On a frame after one whose result could join the positives
-        (eps_pos* below ``update_error_threshold``: the target is held), log h gains
-        -0.5 (log(size / size_0) / ``held_scale_prior``)^2, size the geometric mean of the box's
-        width and height and size_0 the first box's (round 23).
-    held_scale_prior_side : {'both', 'below'}
-        'below': the prior penalises only sizes below size_0 (the collapse), not growth.
     update_interval : int
         Templates are updated every this many frames (paper: 5, the default). Every frame with
         the threshold 0.15 (round 6) did not hold on the 36 development targets: -0.015 ±
@@ -170,10 +163,6 @@ class TrackerParams:
         A re-detection candidate can become the estimate (and carry weight) only if its
         eps_pos < this: a wide search would otherwise jump to whatever the negatives rank
         well, such as another player or the other jogger.
-    hold_scale_lost_frames : int
-        *Ours* (0 = off: the paper). No scale or aspect noise on the first this many of the
-        consecutive frames whose estimate had eps_pos* at the re-detection trigger (round 23;
-        round 21's ``hold_scale_when_lost`` held it for the whole run of such frames).
     generative_weight : float
         A local-patch generative term in the confidence (*ours*, after SCM's generative
         model; 0 = off, the paper): log h gains ``generative_weight * log(similarity)``,
@@ -225,8 +214,6 @@ class TrackerParams:
     # -- confidence (Algorithm 2, step 2.4) -----------------------------------------------
     alpha: float = bounded(25.0, 0, low_open=True)
     confidence: Literal["corrected", "literal"] = "corrected"
-    held_scale_prior: float = bounded(0.0, 0, 10)
-    held_scale_prior_side: Literal["both", "below"] = "both"
 
     # -- template updates and occlusion (Algorithm 2, step 2.5) ---------------------------
     update_interval: int = bounded(5, 1)
@@ -240,7 +227,6 @@ class TrackerParams:
     redetect_count: int = bounded(300, 0, MAX_PARTICLES)
     redetect_factor: float = bounded(4.0, 1, 100)
     redetect_accept: float = bounded(0.3, 0, 1, low_open=True)
-    hold_scale_lost_frames: int = bounded(0, 0)
 
     # -- generative term (ours, after SCM; nrmlc.tracker.generative) ----------------------
     generative_weight: float = bounded(10.0, 0, 1000)
@@ -413,10 +399,10 @@ SECTIONS: dict[str, tuple[str, ...]] = {
     "templates": ("n_positive", "n_negative", "template_sampling", "positive_radius", "negative_radius",
                   "positive_sigma", "negative_push", "patch_size"),
     "coding": ("dictionary_sizes", "coding", "lam", "beta", "n_iterations"),
-    "confidence": ("alpha", "confidence", "held_scale_prior", "held_scale_prior_side"),
+    "confidence": ("alpha", "confidence"),
     "updates": ("update_interval", "max_positive", "update_error_threshold", "occlusion_detection",
                 "occlusion_max_negative", "coefficient_tolerance"),
-    "redetection": ("redetect_count", "redetect_factor", "redetect_accept", "hold_scale_lost_frames"),
+    "redetection": ("redetect_count", "redetect_factor", "redetect_accept"),
     "generative": ("generative_weight", "generative_candidates", "generative_neighbours", "generative_lam",
                    "generative_interval", "generative_step"),
 }
