@@ -92,6 +92,19 @@ def code_version() -> str:
     return digest.hexdigest()[:16]
 
 
+def numba_target() -> str:
+    """The CPU numba compiles the kernels for in this process: ``NUMBA_CPU_NAME`` or the host's,
+    and which features (``NUMBA_CPU_FEATURES``, or the host's). Runs can differ between targets
+    (docs/RELIABILITY.md#determinism), and the cache key does not hold it: it is stored beside
+    each run and checked when runs are read (:meth:`RunCache.run`)."""
+    import numba
+    from llvmlite import binding
+
+    name = numba.config.CPU_NAME or binding.get_host_cpu_name()
+    features = numba.config.CPU_FEATURES
+    return f"{name} ({'host features' if features is None else 'features: ' + (features or 'none')})"
+
+
 def sequence_identity(sequence) -> str:
     """A string naming the sequence's content: :attr:`nrmlc.data.Sequence.identity`
     (a digest of its frames' bytes and its ground truth, or its synthetic spec, plus an
@@ -470,7 +483,21 @@ class RunCache:
     def store(self, job, arrays: dict) -> None:
         # The result first, then its description: a present .npz is always complete.
         io.write_npz(self.path(job), **arrays)
-        io.write_json(self.path(job).with_suffix(".json"), job.description(self.version))
+        io.write_json(self.path(job).with_suffix(".json"),
+                      dict(job.description(self.version), computed_for=numba_target()))
+
+    def other_targets(self, paths) -> dict:
+        """{numba target: count} of the stored runs at ``paths`` computed for a target other than
+        this process's (runs stored before the target was recorded are not counted)."""
+        here, others = numba_target(), {}
+        for path in paths:
+            try:
+                target = json.loads(path.with_suffix(".json").read_text()).get("computed_for")
+            except (OSError, ValueError, AttributeError):
+                continue
+            if target is not None and target != here:
+                others[target] = others.get(target, 0) + 1
+        return others
 
     def _readable(self, path: Path, job=None):
         """The stored arrays, or None (with a warning naming the file) if it is damaged or, for
@@ -541,6 +568,13 @@ class RunCache:
                 missing.append(job)
             else:
                 stored[path] = arrays
+        others = self.other_targets([path for path, job in unique.items()
+                                     if path in stored and getattr(job, "uses_kernels", False)])
+        if others:
+            listed = ", ".join(f"{count} for {target}" for target, count in others.items())
+            warnings.warn(f"{self.folder}: {sum(others.values())} of the cached runs read were computed for another "
+                          f"numba target ({listed}; this process: {numba_target()}); a fresh run may give other boxes "
+                          f"(docs/RELIABILITY.md#determinism)", stacklevel=2)
         if missing:
             missing.sort(key=lambda job: -job.frames())  # longest first: no worker left alone at the end
             for job, arrays in self._compute(missing, executor, jobs, progress):

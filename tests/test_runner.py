@@ -16,6 +16,7 @@ import signal
 import subprocess
 import sys
 import time
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -99,6 +100,20 @@ def test_changed_code_version_recomputes_everything(tmp_path, counted, monkeypat
     cache.run(grid(), jobs=1, progress=False)
     assert sorted(counted) == ["0/0", "0/1", "1/0", "1/1"]
     assert len(list(tmp_path.glob("*.npz"))) == 8
+
+
+def test_runs_read_from_another_numba_target_are_named_and_kept(tmp_path, counted, monkeypatch):
+    RunCache(tmp_path).run(grid(), jobs=1, progress=False)
+    sidecars = sorted(tmp_path.glob("*.json"))
+    assert {json.loads(p.read_text())["computed_for"] for p in sidecars} == {runner.numba_target()}
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # the same target: no warning
+        RunCache(tmp_path).run(grid(), jobs=1, progress=False)
+    monkeypatch.setattr(runner, "numba_target", lambda: "othercpu (host features)")
+    counted.clear()
+    with pytest.warns(UserWarning, match=r"4 of the cached runs read were computed for another numba target"):
+        RunCache(tmp_path).run(grid(), jobs=1, progress=False)
+    assert counted == []  # read, not recomputed: the key does not hold the target
 
 
 def test_code_version_follows_the_sources_that_decide_the_boxes(monkeypatch):
