@@ -46,6 +46,7 @@ that has used GNU OpenMP (numba's threads) cannot fork safely. A Dask
 from __future__ import annotations
 
 import concurrent.futures as futures
+import functools
 import hashlib
 import json
 import multiprocessing
@@ -92,11 +93,13 @@ def code_version() -> str:
     return digest.hexdigest()[:16]
 
 
+@functools.cache
 def numba_target() -> str:
     """The CPU numba compiles the kernels for in this process: ``NUMBA_CPU_NAME`` or the host's,
     and which features (``NUMBA_CPU_FEATURES``, or the host's). Runs can differ between targets
     (docs/RELIABILITY.md#determinism), and the cache key does not hold it: it is stored beside
-    each run and checked when runs are read (:meth:`RunCache.run`)."""
+    each run and checked when runs are read (:meth:`RunCache.run`). Fixed for the process (numba
+    reads the variables once), so it is worked out once."""
     import numba
     from llvmlite import binding
 
