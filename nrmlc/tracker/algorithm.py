@@ -474,11 +474,15 @@ class NRMLCTracker:
         """Algorithm 2, step 2.5: negatives always; positives (``new``, the estimate's (1, d)
         patch) unless occluded."""
         p = self.params
-        negatives = self._sample_negatives(frame, self.state)
         positives = self.positive_templates
         kept = np.arange(len(positives), dtype=np.int64)
         blocked = p.occlusion_detection and result.occluded
-        if not blocked and result.error_positive < p.update_error_threshold:
+        accepted = not blocked and result.error_positive < p.update_error_threshold
+        refresh = (p.negative_refresh == "always" or (p.negative_refresh == "accepted" and accepted)
+                   or (p.negative_refresh == "recognised" and result.error_positive < REDETECT_TRIGGER))
+        # Drawn first whenever they are refreshed, so that 'always' keeps the paper's random stream.
+        negatives = self._sample_negatives(frame, self.state) if refresh else self.negative_templates
+        if accepted:
             if len(positives) < p.max_positive:
                 positives = np.vstack([positives, new])
                 kept = np.append(kept, -1)

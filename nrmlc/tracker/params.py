@@ -115,6 +115,11 @@ class TrackerParams:
         Block positive updates while the target is judged occluded.
     occlusion_max_negative : int
         Occluded when LEN(neg*) exceeds this (Algorithm 2: update iff LEN <= 2).
+    negative_refresh : {'always', 'accepted', 'recognised'}
+        When the negatives are resampled at an update. 'always' (the paper, Algorithm 2 step
+        2.5): at every update. 'accepted': only when the result joins the positives, so the
+        negatives are never fresher than the positives (round 4's "update starvation").
+        'recognised': only when the best candidate's code uses a positive template.
     coefficient_tolerance : float
         A template "is used" by the best candidate when its coefficient's magnitude
         exceeds this (for LEN(neg*)).
@@ -221,6 +226,7 @@ class TrackerParams:
     update_error_threshold: float = 0.1
     occlusion_detection: bool = True
     occlusion_max_negative: int = 2
+    negative_refresh: Literal["always", "accepted", "recognised"] = "always"
     coefficient_tolerance: float = bounded(1e-6, 0)
 
     # -- re-detection (ours; nrmlc.tracker.redetect) --------------------------------------
