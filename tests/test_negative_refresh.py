@@ -55,3 +55,29 @@ def test_negatives_stay_unless_the_rule_allows_a_refresh(rule):
         previous = negatives
     if rule == "recognised":
         assert refreshed > 0  # the scene's target is recognised on some update frames
+
+
+def _positive_counts(**changes) -> list[int]:
+    frames, truth = jump_scene(jump_frame=100)  # no jump within the scene: the target stays put
+    tracker = NRMLCTracker(seed=3, n_particles=60, update_interval=3, occlusion_detection=False, **changes)
+    tracker.init(frames[0], truth[0])
+    counts = []
+    for frame in frames[1:]:
+        tracker.update(frame)
+        counts.append(len(tracker.positive_templates))
+    return counts
+
+
+def test_positive_batch_adds_every_accepted_result_of_the_interval_at_the_update():
+    # Every result accepted (threshold 10): the paper's update adds one positive per update, the
+    # batch the interval's three (two at the first: frame 0 is the initial box), and only on update
+    # frames (frame indices 2, 5, 8, ...).
+    single = _positive_counts(update_error_threshold=10.0)
+    batch = _positive_counts(update_error_threshold=10.0, positive_batch=True)
+    n_positive = TrackerParams().n_positive
+    for index, (one, many) in enumerate(zip(single, batch), start=1):
+        updates = (index + 1) // 3
+        assert one == n_positive + updates
+        assert many == n_positive + max(3 * updates - 1, 0)
+    # None accepted: the batch adds nothing either.
+    assert set(_positive_counts(update_error_threshold=0.0, positive_batch=True)) == {n_positive}
