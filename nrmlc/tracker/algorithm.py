@@ -202,9 +202,6 @@ class NRMLCTracker:
         #: such as experiments/internals.py; the algorithm never reads it).
         self.last_coding: Coding | None = None
         self.generative: LocalHistogramModel | None = None
-        #: Under ``positive_batch``: the (1, d) patches of this interval's accepted results, added
-        #: to the positives at the next update.
-        self.pending_positives: list[np.ndarray] = []
         self.frame_shape: tuple | None = None
         self.initial_box: np.ndarray | None = None
         self.particles: np.ndarray | None = None
@@ -301,7 +298,6 @@ class NRMLCTracker:
                                                   p.generative_step)
         self.frame_index = 0
         self.last = None
-        self.pending_positives = []
 
     def update(self, image) -> np.ndarray:
         """Track into the next frame; returns the 1-based ``(x, y, w, h)`` box.
@@ -327,8 +323,6 @@ class NRMLCTracker:
         best_patch = coding.patches[best][None, :]
         if (self.frame_index + 1) % self.params.update_interval == 0:
             self._update_templates(frame, result, best_patch)
-        elif self.params.positive_batch and self._accepted(result):
-            self.pending_positives.append(best_patch)
         if self.generative is not None and (self.frame_index + 1) % self.params.generative_interval == 0:
             # Coded again alone: keeping every candidate's local codes cost more than this.
             local = self.generative.similarity(best_patch)
@@ -476,33 +470,22 @@ class NRMLCTracker:
         self.last = result
         return result, coding, best
 
-    def _accepted(self, result: FrameResult) -> bool:
-        """Whether ``result`` may join the positives: not judged occluded, eps_pos* under the threshold."""
-        p = self.params
-        blocked = p.occlusion_detection and result.occluded
-        return not blocked and result.error_positive < p.update_error_threshold
-
     def _update_templates(self, frame: np.ndarray, result: FrameResult, new: np.ndarray) -> None:
         """Algorithm 2, step 2.5: negatives always; positives (``new``, the estimate's (1, d)
-        patch) unless occluded; under ``positive_batch`` also the interval's earlier accepted results."""
+        patch) unless occluded."""
         p = self.params
+        negatives = self._sample_negatives(frame, self.state)
         positives = self.positive_templates
         kept = np.arange(len(positives), dtype=np.int64)
-        accepted = self._accepted(result)
-        refresh = (p.negative_refresh == "always" or (p.negative_refresh == "accepted" and accepted)
-                   or (p.negative_refresh == "recognised" and result.error_positive < REDETECT_TRIGGER))
-        # Drawn first whenever they are refreshed, so that 'always' keeps the paper's random stream.
-        negatives = self._sample_negatives(frame, self.state) if refresh else self.negative_templates
-        joining = self.pending_positives + ([new] if accepted else [])
-        self.pending_positives = []
-        for patch in joining:
+        blocked = p.occlusion_detection and result.occluded
+        if not blocked and result.error_positive < p.update_error_threshold:
             if len(positives) < p.max_positive:
-                positives = np.vstack([positives, patch])
+                positives = np.vstack([positives, new])
                 kept = np.append(kept, -1)
             else:
-                closest = int(np.argmin(((positives - patch) ** 2).sum(axis=1)))
+                closest = int(np.argmin(((positives - new) ** 2).sum(axis=1)))
                 positives = positives.copy()
-                positives[closest] = patch[0]
+                positives[closest] = new[0]
                 kept[closest] = -1
-        result.updated_positive = accepted
+            result.updated_positive = True
         self._set_templates(positives, negatives, kept)

@@ -115,17 +115,6 @@ class TrackerParams:
         Block positive updates while the target is judged occluded.
     occlusion_max_negative : int
         Occluded when LEN(neg*) exceeds this (Algorithm 2: update iff LEN <= 2).
-    positive_batch : bool
-        False (the paper): an update adds its own frame's result. True (IVT's and ASLA's batch of
-        5, ``Run_IVT.m`` ``batchsize``, ASLA's ``tracker.m`` ``tmpl.warpimg``): every frame's
-        result that passes the gate (eps_pos* and occlusion, judged on its own frame) is kept and
-        joins the positives at the next update, which still comes every ``update_interval``
-        frames with the negatives.
-    negative_refresh : {'always', 'accepted', 'recognised'}
-        When the negatives are resampled at an update. 'always' (the paper, Algorithm 2 step
-        2.5): at every update. 'accepted': only when the result joins the positives, so the
-        negatives are never fresher than the positives (round 4's "update starvation").
-        'recognised': only when the best candidate's code uses a positive template.
     coefficient_tolerance : float
         A template "is used" by the best candidate when its coefficient's magnitude
         exceeds this (for LEN(neg*)).
@@ -232,8 +221,6 @@ class TrackerParams:
     update_error_threshold: float = 0.1
     occlusion_detection: bool = True
     occlusion_max_negative: int = 2
-    negative_refresh: Literal["always", "accepted", "recognised"] = "always"
-    positive_batch: bool = False
     coefficient_tolerance: float = bounded(1e-6, 0)
 
     # -- re-detection (ours; nrmlc.tracker.redetect) --------------------------------------
@@ -414,7 +401,7 @@ SECTIONS: dict[str, tuple[str, ...]] = {
     "coding": ("dictionary_sizes", "coding", "lam", "beta", "n_iterations"),
     "confidence": ("alpha", "confidence"),
     "updates": ("update_interval", "max_positive", "update_error_threshold", "occlusion_detection",
-                "occlusion_max_negative", "coefficient_tolerance", "negative_refresh", "positive_batch"),
+                "occlusion_max_negative", "coefficient_tolerance"),
     "redetection": ("redetect_count", "redetect_factor", "redetect_accept"),
     "generative": ("generative_weight", "generative_candidates", "generative_neighbours", "generative_lam",
                    "generative_interval", "generative_step"),
