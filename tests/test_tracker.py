@@ -63,6 +63,16 @@ def test_every_departure_of_the_default_from_the_paper_is_documented():
     assert [name for name in differing if f"`{name}`" not in deviations] == []
 
 
+def test_every_field_is_in_exactly_one_section():
+    """SECTIONS (the README's map of the parameters) names each field of TrackerParams once."""
+    import dataclasses
+
+    from nrmlc.tracker.params import SECTIONS
+
+    listed = [name for names in SECTIONS.values() for name in names]
+    assert sorted(listed) == sorted(f.name for f in dataclasses.fields(TrackerParams))
+
+
 def test_same_seed_same_boxes_and_different_seeds_differ(sequence, tracked):
     again = track_sequence(sequence, TrackerParams(**FAST), seed=0, n_frames=15)
     assert np.array_equal(again.boxes, tracked.boxes[:15])
