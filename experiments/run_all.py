@@ -245,6 +245,9 @@ def _main(argv=None) -> int:
             return 1 if failures else 0
         try:
             run_grid(context, union)
+        except NrmlcError as exc:  # e.g. a numba target this CPU cannot run: one line, and stop
+            print(f"error: {exc}", file=sys.stderr)
+            return 2
         except Exception as exc:
             # The scripts will retry what is missing and fail one by one; say where it started.
             traceback.print_exc()

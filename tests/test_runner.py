@@ -116,6 +116,61 @@ def test_runs_read_from_another_numba_target_are_named_and_kept(tmp_path, counte
     assert counted == []  # read, not recomputed: the key does not hold the target
 
 
+def _target(monkeypatch, name, features=None):
+    """This process as if numba had been told to compile for ``name`` with ``features``; the
+    child's outcome is mocked (a real one compiles every kernel, a minute)."""
+    import numba
+    from llvmlite import binding
+
+    monkeypatch.setattr(numba.config, "CPU_NAME", name)
+    monkeypatch.setattr(numba.config, "CPU_FEATURES", features)
+    monkeypatch.setattr(binding, "get_host_cpu_name", lambda: "hostcpu")
+    monkeypatch.setattr(runner, "_target_problem", None)
+    children = []
+
+    def child(returncode, stderr=""):
+        def run(argv, **kwargs):
+            children.append((argv, kwargs["env"]))
+            return subprocess.CompletedProcess(argv, returncode, "", stderr)
+        monkeypatch.setattr(runner.subprocess, "run", run)
+    return children, child
+
+
+def test_a_numba_target_this_cpu_cannot_run_is_refused_in_one_line(monkeypatch):
+    children, child = _target(monkeypatch, "znver4", "")
+    child(-signal.SIGILL)
+    with pytest.raises(runner.ParameterError, match=r"NUMBA_CPU_NAME=znver4.*this CPU \(hostcpu\) cannot run.*"
+                                                   r"died with SIGILL") as caught:
+        runner.check_numba_target()
+    assert "\n" not in str(caught.value) and len(children) == 1
+    argv, env = children[0]
+    assert "warm_up()" in argv[-1] and env["PYTHONPATH"].split(os.pathsep)[0] == str(Path(runner.__file__).parents[1])
+    with pytest.raises(runner.ParameterError):  # remembered: not probed twice
+        runner.check_numba_target()
+    assert len(children) == 1
+    children, child = _target(monkeypatch, "znver4", "")
+    child(1, "Traceback ...\nImportError: no numba here\n")
+    with pytest.raises(runner.ParameterError, match=r"failed \(ImportError: no numba here\)"):
+        runner.check_numba_target()
+
+
+def test_a_numba_target_this_cpu_runs_passes_and_the_own_target_is_not_probed(monkeypatch):
+    children, child = _target(monkeypatch, "znver4", "")
+    child(0)
+    runner.check_numba_target()
+    runner.check_numba_target()
+    assert len(children) == 1
+    for name, features in ((None, None), ("hostcpu", None), ("hostcpu", "")):
+        children, child = _target(monkeypatch, name, features)
+        child(-signal.SIGILL)
+        runner.check_numba_target()  # the host's own code: nothing to probe
+        assert children == []
+    children, child = _target(monkeypatch, None, "+avx512f")  # features beyond the host's are probed
+    child(-signal.SIGILL)
+    with pytest.raises(runner.ParameterError, match="SIGILL"):
+        runner.check_numba_target()
+
+
 def test_code_version_follows_the_sources_that_decide_the_boxes(monkeypatch):
     version = code_version()
     assert version == code_version() and len(version) == 16
