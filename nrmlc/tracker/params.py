@@ -122,7 +122,8 @@ class TrackerParams:
         Templates and candidates are patch_size x patch_size (paper: 32).
     patch_blocks : int
         1 (the paper): each patch is one unit-l2-norm vector. b > 1 (round 30, after ASLA's
-        local patches, each l2-normalised): the patch is cut into b x b square blocks, each
+        16 x 16 local patches, each l2-normalised, in the OTB benchmark's ``run_ASLA.m``): the
+        patch is cut into b x b square blocks, each
         scaled to unit norm and the whole to unit norm again, so a light that changes across
         the target (a shadow, a side light) changes every block's contrast alike.
     template_sampling : {'scm', 'annulus'}
