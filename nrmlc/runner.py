@@ -51,6 +51,8 @@ import hashlib
 import json
 import multiprocessing
 import os
+import signal
+import subprocess
 import sys
 import time
 import warnings
@@ -136,7 +138,7 @@ def frames_tracked(sequence, n_frames: int | None) -> int:
 #: ``experiments.screen --baseline-version`` can pair a new switch with them (round 19 used it
 #: for its five switches, then removed them; round 20 for ``translation_floor``, whose 0 is the
 #: ``paper`` preset's and the default's before round 20).
-SWITCHES_ADDED_LATER: dict[str, object] = {"translation_floor": 0.0, "patch_blocks": 1}
+SWITCHES_ADDED_LATER: dict[str, object] = {"translation_floor": 0.0}
 
 
 def params_for_key(params: TrackerParams) -> dict:
@@ -344,6 +346,49 @@ def kernels_cached() -> bool:
 
 
 _kernels_ready = False
+_target_problem: str | None = None
+
+
+def check_numba_target() -> None:
+    """Refuse, in one line, a numba target this CPU cannot run.
+
+    ``NUMBA_CPU_NAME`` (make's ``NUMBA_TARGET``) names the CPU the kernels are compiled for;
+    code for a CPU with more instructions than this one (``znver4``'s AVX-512 on a CPU without
+    it) kills the process with an illegal instruction and no word of why. So when the variable
+    names another CPU than the host's, or ``NUMBA_CPU_FEATURES`` adds features, :func:`warm_up`
+    runs first in a child process (compiling into the same numba cache, so the time is not
+    lost); if the child dies, :class:`~nrmlc.errors.ParameterError` says so. Checked once per
+    process.
+
+    Raises
+    ------
+    ParameterError
+        The child process died (its signal or last error line is named).
+    """
+    global _target_problem
+    import numba
+    from llvmlite import binding
+
+    name, features, host = numba.config.CPU_NAME, numba.config.CPU_FEATURES, binding.get_host_cpu_name()
+    if (not name or name == host) and not features:
+        return
+    if _target_problem is None:
+        # the child imports this very package, whatever the current folder or installed copy
+        env = dict(os.environ, PYTHONPATH=os.pathsep.join(
+            [str(Path(__file__).resolve().parents[1])] + [p for p in [os.environ.get("PYTHONPATH")] if p]))
+        child = subprocess.run([sys.executable, "-c", "from nrmlc.runner import warm_up; warm_up()"], env=env,
+                               capture_output=True, text=True)
+        if child.returncode < 0:
+            _target_problem = f"died with {signal.Signals(-child.returncode).name}"
+        elif child.returncode > 0:
+            lines = child.stderr.strip().splitlines()
+            _target_problem = f"failed ({lines[-1] if lines else f'exit status {child.returncode}'})"
+        else:
+            _target_problem = ""
+    if _target_problem:
+        raise ParameterError(f"NUMBA_CPU_NAME={name or host}, NUMBA_CPU_FEATURES={features!r} (make's NUMBA_TARGET): "
+                             f"this CPU ({host}) cannot run the kernels compiled for it: the warm-up {_target_problem}; "
+                             f"leave NUMBA_TARGET unset to compile for this CPU (docs/RELIABILITY.md#determinism)")
 
 
 def prepare_kernels(stream=None) -> float:
@@ -362,6 +407,7 @@ def prepare_kernels(stream=None) -> float:
         print("[nrmlc] compiling the numba kernels (once, after an install or a code change; about 20-60 s; "
               "not counted as tracking time) ...", file=stream, flush=True)
     start = time.perf_counter()
+    check_numba_target()
     warm_up()
     seconds = time.perf_counter() - start
     if compiling:

@@ -163,17 +163,6 @@ def _exp_or_inf(value: float) -> float:
     return float("inf") if value > 709.0 else float(np.exp(value))
 
 
-def block_normalised(patches: np.ndarray, patch_size: int, blocks: int) -> np.ndarray:
-    """Unit-norm patch vectors (n, patch_size**2) with each of their ``blocks`` x ``blocks``
-    square blocks scaled to norm ``1 / blocks`` (so the whole is unit norm again); an all-zero
-    block stays zero. ``TrackerParams.patch_blocks``."""
-    n, side = len(patches), patch_size // blocks
-    grid = patches.reshape(n, blocks, side, blocks, side)
-    norms = np.sqrt(np.einsum("nibjc,nibjc->nij", grid, grid))
-    scale = np.where(norms > 1e-12, 1.0 / (blocks * np.maximum(norms, 1e-12)), 0.0).astype(np.float32)
-    return np.ascontiguousarray((grid * scale[:, :, None, :, None]).reshape(n, patch_size * patch_size))
-
-
 class NRMLCTracker:
     """NRMLC tracker with the got10k Tracker interface (``init`` / ``update``).
 
@@ -249,10 +238,7 @@ class NRMLCTracker:
     def patches(self, frame: np.ndarray, states: np.ndarray) -> np.ndarray:
         """The patch vectors the tracker codes for ``states`` (n, 6) in ``frame`` (a frame
         as ``update`` sees it): (n, patch_size**2) float32, unit rows."""
-        patches = warp_patches(frame, np.ascontiguousarray(state_to_affine(states)), self.params.patch_size)
-        if self.params.patch_blocks > 1:
-            patches = block_normalised(patches, self.params.patch_size, self.params.patch_blocks)
-        return patches
+        return warp_patches(frame, np.ascontiguousarray(state_to_affine(states)), self.params.patch_size)
 
     def _set_templates(self, positives: np.ndarray, negatives: np.ndarray,
                        kept_positives: np.ndarray | None = None) -> None:

@@ -120,12 +120,6 @@ class TrackerParams:
         exceeds this (for LEN(neg*)).
     patch_size : int
         Templates and candidates are patch_size x patch_size (paper: 32).
-    patch_blocks : int
-        1 (the paper): each patch is one unit-l2-norm vector. b > 1 (round 30, after ASLA's
-        16 x 16 local patches, each l2-normalised, in the OTB benchmark's ``run_ASLA.m``): the
-        patch is cut into b x b square blocks, each
-        scaled to unit norm and the whole to unit norm again, so a light that changes across
-        the target (a shadow, a side light) changes every block's contrast alike.
     template_sampling : {'scm', 'annulus'}
         Where template centres are drawn. 'scm' follows SCM's ``affineTrainG.m`` /
         ``updateDic.m`` (the lineage of the paper's template scheme): positives from
@@ -209,7 +203,6 @@ class TrackerParams:
     positive_sigma: float = bounded(1.0, 0, MAX_RADIUS)
     negative_push: float = bounded(0.25, 0, 2)
     patch_size: int = bounded(PATCH_SIZE, 4)
-    patch_blocks: int = bounded(1, 1)
 
     # -- coding (Algorithm 1) -------------------------------------------------------------
     dictionary_sizes: tuple[int, ...] = (5, 8, 10)
@@ -287,8 +280,6 @@ class TrackerParams:
                 _fail("dictionary_sizes", f"k = {k} is larger than the template count {n_templates}")
         if self.max_positive < self.n_positive:
             _fail("max_positive", f"must be >= n_positive ({self.n_positive}), got {self.max_positive}")
-        if self.patch_size % self.patch_blocks:
-            _fail("patch_blocks", f"must divide patch_size ({self.patch_size}), got {self.patch_blocks}")
         if self.generative_weight > 0 and self.patch_size < LOCAL_SIZE:
             _fail("patch_size", f"must be >= {LOCAL_SIZE} (the local patches) when generative_weight > 0, "
                                 f"got {self.patch_size}")
@@ -406,7 +397,7 @@ PRESETS: dict[str, dict] = {
 SECTIONS: dict[str, tuple[str, ...]] = {
     "motion": ("n_particles", "motion_sigmas", "propagation", "translation_noise", "translation_floor"),
     "templates": ("n_positive", "n_negative", "template_sampling", "positive_radius", "negative_radius",
-                  "positive_sigma", "negative_push", "patch_size", "patch_blocks"),
+                  "positive_sigma", "negative_push", "patch_size"),
     "coding": ("dictionary_sizes", "coding", "lam", "beta", "n_iterations"),
     "confidence": ("alpha", "confidence"),
     "updates": ("update_interval", "max_positive", "update_error_threshold", "occlusion_detection",
