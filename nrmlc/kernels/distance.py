@@ -18,8 +18,8 @@ accumulation 16.8 ms), ``dgemm`` on float64 copies 4.0 ms including the
 casts. BLAS wins, so :func:`candidate_template_dots` is a checked wrapper
 around the matrix product and needs no ``njit``. Under the thread policy of
 :func:`nrmlc.config.set_threads` numpy's BLAS runs one thread, so the product
-is split by rows over ``numba.get_num_threads()`` Python threads
-(:func:`_row_blocked_product`).
+is split into fixed blocks of rows shared by ``numba.get_num_threads()`` Python
+threads (:func:`_row_blocked_product`).
 
 Precision note: ``sgemm`` accumulates in float32, so each dot carries an
 absolute error of up to ~1e-6 for unit-norm rows (7e-7 measured). That is
@@ -46,8 +46,13 @@ __all__ = ["candidate_template_dots", "squared_norms", "template_gram", "nearest
 _FLOAT_DTYPES = (np.dtype(np.float32), np.dtype(np.float64))
 
 
-#: Below this many candidates per thread the product runs in the calling thread.
-_MIN_ROWS_PER_THREAD = 64
+#: Rows of the candidate-template product per ``sgemm`` call. Fixed, never derived from the
+#: thread count: OpenBLAS's Haswell kernels (its choice on an x86-64 CPU without AVX-512)
+#: give a row other bits in a call of another size or at another offset (on an AMD EPYC, 2026-12-02,
+#: 9 of 450 rows differed between one call and two halves), so blocks that followed the thread
+#: count made the boxes follow it too; with fixed blocks each row is computed by the same call
+#: whatever the thread count. The threads share the blocks.
+_ROWS_PER_BLOCK = 128
 
 _pool_lock = threading.Lock()
 _pool: ThreadPoolExecutor | None = None
@@ -111,24 +116,23 @@ def _run_in_threads(tasks: list) -> None:
 
 
 def _row_blocked_product(candidates: np.ndarray, templates: np.ndarray) -> np.ndarray:
-    """``candidates @ templates.T`` in float64, its row blocks multiplied in ``numba.get_num_threads()`` threads.
+    """``candidates @ templates.T`` in float64, its fixed row blocks (:data:`_ROWS_PER_BLOCK`)
+    multiplied in up to ``numba.get_num_threads()`` threads.
 
     BLAS itself is held to one thread (:func:`_one_blas_thread`; why: the
     thread policy in :func:`nrmlc.config.set_threads`); numpy releases the GIL,
     so the blocks run in parallel and idle workers sleep. Each thread also casts
     its block of a float32 product to float64 (exact), so no serial pass over
-    the product remains. ``sgemm`` computes each row the same way whatever the
-    number of rows in the call, so the result does not depend on the thread count
-    (a test checks the tracker's boxes bit for bit). ``dgemm`` does not promise
-    that (its kernels for short calls sum in another order: 1e-14 apart, measured),
-    but float64 candidates are only a testing aid.
+    the product remains. The blocks do not depend on the thread count, so neither
+    does the result (a test checks the tracker's boxes bit for bit), whether or not
+    the BLAS computes a row the same way in calls of other sizes (OpenBLAS's
+    SkylakeX ``sgemm`` did, its Haswell one does not).
     """
     n_rows = candidates.shape[0]
-    n_blocks = max(1, min(numba.get_num_threads(), n_rows // _MIN_ROWS_PER_THREAD))
     out = np.empty((n_rows, templates.shape[0]), dtype=np.float64)
     single = candidates.dtype == np.float32
     products = np.empty(out.shape, dtype=np.float32) if single else out
-    bounds = [n_rows * b // n_blocks for b in range(n_blocks + 1)]
+    bounds = list(range(0, n_rows, _ROWS_PER_BLOCK)) + [n_rows]
 
     def block(start: int, stop: int):
         def task() -> None:
