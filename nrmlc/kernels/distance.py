@@ -49,7 +49,7 @@ _FLOAT_DTYPES = (np.dtype(np.float32), np.dtype(np.float64))
 #: Rows of the candidate-template product per ``sgemm`` call. Fixed, never derived from the
 #: thread count: OpenBLAS's Haswell kernels (its choice on an x86-64 CPU without AVX-512)
 #: give a row other bits in a call of another size or at another offset (on an AMD EPYC, 2026-12-02,
-#: 9 of 450 rows differed between one call and two halves), so blocks that followed the thread
+#: 121 of 450 rows differed between one call and two halves), so blocks that followed the thread
 #: count made the boxes follow it too; with fixed blocks each row is computed by the same call
 #: whatever the thread count. The threads share the blocks.
 _ROWS_PER_BLOCK = 128
