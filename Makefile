@@ -6,7 +6,7 @@
 #       PEERS=dir (default <DATA>/../peer_results) DRY_RUN=1 (print the grid and stop)
 #       DASK=tcp://host:8786 (run the grid on a Dask cluster; pip install -e .[cluster])
 #       NUMBA_TARGET=znver4 (compile the kernels for that CPU, with a numba cache and a run cache of its
-#       own: znver4 reproduces the committed figures/ bit for bit on a CPU with AVX-512;
+#       own: figures/ was made for znver4, bit for bit on a CPU with AVX-512 at its code version;
 #       docs/RELIABILITY.md#determinism)
 #   make test                    the linter (ruff) and the test suite (what CI runs)
 #   make theorem                 numeric checks of Theorem 1 (seconds)
