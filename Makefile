@@ -5,9 +5,10 @@
 #       SEEDS=5 SWEEP_SEEDS=2 ABLATION_SEEDS=1 JOBS=2 MAX_FRAMES=N ONLY=script,script
 #       PEERS=dir (default <DATA>/../peer_results) DRY_RUN=1 (print the grid and stop)
 #       DASK=tcp://host:8786 (run the grid on a Dask cluster; pip install -e .[cluster])
-#       NUMBA_TARGET=znver4 (compile the kernels for that CPU, with a numba cache and a run cache of its
-#       own: figures/ was made for znver4, bit for bit on a CPU with AVX-512 at its code version;
-#       docs/RELIABILITY.md#determinism)
+#       PORTABLE=1 (what figures/ was made with: the AVX2 level that any x86-64 CPU with AVX2 and FMA runs,
+#       Intel or AMD: numba's haswell target, OpenBLAS's Haswell kernels, numpy's loops without AVX-512;
+#       a numba cache and a run cache of its own; docs/RELIABILITY.md#determinism)
+#       NUMBA_TARGET=cpu (compile the kernels for that CPU only, with caches of its own)
 #   make test                    the linter (ruff) and the test suite (what CI runs)
 #   make theorem                 numeric checks of Theorem 1 (seconds)
 #   make bench [DATA=path]       kernel and tracker timings -> out/figures/bench.md (OUT=figures: committed)
@@ -33,8 +34,19 @@ STAMP       := $(VENV)/.installed
 TEST_STAMP  := $(VENV)/.installed-test
 DASK        ?=
 NUMBA_TARGET ?=
+PORTABLE    ?=
+# The libraries that pick their code by the CPU at run time, held at the AVX2 level too (naming a
+# level the CPU lacks is not an error for either library).
+ifneq ($(PORTABLE),)
+NUMBA_TARGET := haswell
+LIBRARY_ENV := OPENBLAS_CORETYPE=Haswell NPY_DISABLE_CPU_FEATURES="X86_V4 AVX512_ICL AVX512_SPR"
+TARGET_NAME := portable
+else
+LIBRARY_ENV :=
+TARGET_NAME := $(NUMBA_TARGET)
+endif
 # numba's CPU name and its own default features (NUMBA_CPU_FEATURES empty), not the host's
-TARGET_ENV  := $(if $(NUMBA_TARGET),NUMBA_CPU_NAME=$(NUMBA_TARGET) NUMBA_CPU_FEATURES= NUMBA_CACHE_DIR=.cache/numba-$(NUMBA_TARGET))
+TARGET_ENV  := $(if $(NUMBA_TARGET),$(LIBRARY_ENV) NUMBA_CPU_NAME=$(NUMBA_TARGET) NUMBA_CPU_FEATURES= NUMBA_CACHE_DIR=.cache/numba-$(TARGET_NAME))
 
 export PYTHONHASHSEED := 0
 
@@ -66,7 +78,7 @@ test: $(TEST_STAMP)
 	$(PY) -m pytest
 
 figures: $(STAMP)
-	$(TARGET_ENV) $(PY) -m experiments.run_all $(if $(NUMBA_TARGET),--cache .cache/runs-$(NUMBA_TARGET)) $(if $(DATA),--data "$(DATA)") $(if $(OUT),--out "$(OUT)") \
+	$(TARGET_ENV) $(PY) -m experiments.run_all $(if $(NUMBA_TARGET),--cache .cache/runs-$(TARGET_NAME)) $(if $(DATA),--data "$(DATA)") $(if $(OUT),--out "$(OUT)") \
 	    $(if $(SEQUENCES),--sequences "$(SEQUENCES)") $(if $(PEERS),--peers "$(PEERS)") \
 	    $(if $(SEEDS),--seeds $(SEEDS)) $(if $(SWEEP_SEEDS),--sweep-seeds $(SWEEP_SEEDS)) \
 	    $(if $(ABLATION_SEEDS),--ablation-seeds $(ABLATION_SEEDS)) $(if $(JOBS),--jobs $(JOBS)) \

@@ -1,4 +1,5 @@
-"""The Makefile's figures target passes NUMBA_TARGET on as numba's CPU target, with caches of its own."""
+"""The Makefile's figures target passes NUMBA_TARGET on as numba's CPU target, and PORTABLE as the
+AVX2 level for numba, OpenBLAS and numpy, each with caches of its own."""
 import shutil
 import subprocess
 from pathlib import Path
@@ -28,3 +29,11 @@ def test_without_it_numba_compiles_for_the_host_into_the_usual_caches():
     recipe = _dry_run()
     assert "NUMBA_CPU_NAME" not in recipe and "--cache" not in recipe
     assert "-m experiments.run_all --data \"somewhere\"" in recipe
+
+
+
+def test_portable_holds_numba_openblas_and_numpy_at_the_avx2_level_with_caches_of_its_own():
+    recipe = _dry_run("PORTABLE=1")
+    assert ('OPENBLAS_CORETYPE=Haswell NPY_DISABLE_CPU_FEATURES="X86_V4 AVX512_ICL AVX512_SPR" '
+            "NUMBA_CPU_NAME=haswell NUMBA_CPU_FEATURES= NUMBA_CACHE_DIR=.cache/numba-portable " in recipe)
+    assert "-m experiments.run_all --cache .cache/runs-portable --data \"somewhere\"" in recipe

@@ -270,7 +270,10 @@ def test_full_positive_set_replaces_the_closest(sequence):
 
 @pytest.mark.parametrize("name", ["patch_normalization", "dictionaries", "wide_share", "wide_factor",
                                   "estimate_count", "velocity_damping", "antialias", "keep_initial_positives",
-                                  "scale_prior"])
+                                  "scale_prior", "illumination_window", "features", "gray_weight",
+                                  "held_scale_prior", "held_scale_prior_side", "hold_scale_lost_frames",
+                                  "shrunk_negatives", "grown_negatives", "negative_refresh", "positive_batch",
+                                  "patch_blocks"])
 def test_fields_measured_and_not_adopted_are_refused_with_a_pointer(name):
     from nrmlc.tracker.params import parse_param_assignment
 

@@ -124,9 +124,7 @@ def _row_blocked_product(candidates: np.ndarray, templates: np.ndarray) -> np.nd
     so the blocks run in parallel and idle workers sleep. Each thread also casts
     its block of a float32 product to float64 (exact), so no serial pass over
     the product remains. The blocks do not depend on the thread count, so neither
-    does the result (a test checks the tracker's boxes bit for bit), whether or not
-    the BLAS computes a row the same way in calls of other sizes (OpenBLAS's
-    SkylakeX ``sgemm`` did, its Haswell one does not).
+    does the result (why that matters: :data:`_ROWS_PER_BLOCK`).
     """
     n_rows = candidates.shape[0]
     out = np.empty((n_rows, templates.shape[0]), dtype=np.float64)

@@ -35,7 +35,10 @@ MAX_MOTION_SIGMA = (1000.0, 1000.0, 1.0, math.pi, 1.0, math.pi)
 #: Fields that were measured on the development sequences and not adopted, then removed from the
 #: code; passing one is refused with a pointer to the measurements.
 NOT_ADOPTED = ("patch_normalization", "dictionaries", "wide_share", "wide_factor", "estimate_count",
-               "velocity_damping", "antialias", "keep_initial_positives", "scale_prior")
+               "velocity_damping", "antialias", "keep_initial_positives", "scale_prior",
+               "illumination_window", "features", "gray_weight", "held_scale_prior", "held_scale_prior_side",
+               "hold_scale_lost_frames", "shrunk_negatives", "grown_negatives", "negative_refresh",
+               "positive_batch", "patch_blocks")
 
 
 def bounded(default, low=None, high=None, *, low_open: bool = False, high_open: bool = False):
