@@ -110,6 +110,17 @@ def numba_target() -> str:
     return f"{name} ({'host features' if features is None else 'features: ' + (features or 'none')})"
 
 
+# The variables that move OpenBLAS's and numpy's kernels off the host's best SIMD level
+# (`make figures PORTABLE=1`); they can change the boxes as the numba target can.
+LIBRARY_VARIABLES = ("OPENBLAS_CORETYPE", "NPY_DISABLE_CPU_FEATURES")
+
+
+def library_settings() -> dict:
+    """{variable: value} of :data:`LIBRARY_VARIABLES` set in this process, recorded beside each
+    stored run (``library_settings``) for the record only: reading runs does not compare them."""
+    return {name: os.environ[name] for name in LIBRARY_VARIABLES if name in os.environ}
+
+
 def sequence_identity(sequence) -> str:
     """A string naming the sequence's content: :attr:`nrmlc.data.Sequence.identity`
     (a digest of its frames' bytes and its ground truth, or its synthetic spec, plus an
@@ -533,7 +544,8 @@ class RunCache:
         # The result first, then its description: a present .npz is always complete.
         io.write_npz(self.path(job), **arrays)
         io.write_json(self.path(job).with_suffix(".json"),
-                      dict(job.description(self.version), computed_for=numba_target()))
+                      dict(job.description(self.version), computed_for=numba_target(),
+                           library_settings=library_settings()))
 
     def other_targets(self, paths) -> dict:
         """{numba target: count} of the stored runs at ``paths`` computed for a target other than
@@ -574,9 +586,10 @@ class RunCache:
             unique.setdefault(self.path(job), job)
         missing = []
         for path, job in unique.items():
-            if path.is_file() and not zipfile.is_zipfile(path):
+            if not path.is_file():
+                missing.append(job)
+            elif not zipfile.is_zipfile(path):
                 warnings.warn(f"{path}: damaged cache file (not a whole .npz); computing it again", stacklevel=2)
-            if not (path.is_file() and zipfile.is_zipfile(path)):
                 missing.append(job)
         return missing
 

@@ -116,6 +116,14 @@ def test_runs_read_from_another_numba_target_are_named_and_kept(tmp_path, counte
     assert counted == []  # read, not recomputed: the key does not hold the target
 
 
+def test_library_settings_are_recorded_beside_each_run(tmp_path, monkeypatch):
+    monkeypatch.delenv("NPY_DISABLE_CPU_FEATURES", raising=False)
+    monkeypatch.setenv("OPENBLAS_CORETYPE", "Haswell")
+    RunCache(tmp_path).run(grid(), jobs=1, progress=False)
+    recorded = [json.loads(p.read_text())["library_settings"] for p in tmp_path.glob("*.json")]
+    assert len(recorded) == 4 and all(r == {"OPENBLAS_CORETYPE": "Haswell"} for r in recorded)
+
+
 def _target(monkeypatch, name, features=None):
     """This process as if numba had been told to compile for ``name`` with ``features``; the
     child's outcome is mocked (a real one compiles every kernel, a minute)."""
