@@ -315,6 +315,20 @@ def test_every_switch_has_ablation_rows(monkeypatch):
     assert switches <= varied, switches - varied
 
 
+def test_a_stated_value_the_default_departs_from_has_a_row_with_the_paper_value(monkeypatch):
+    """n_negative (paper 150, default 100) gets an ablation family whose second row restores the
+    paper's count and changes nothing else."""
+    from experiments.ablations import families
+    from experiments.grid import Context, params_differences
+    from nrmlc.tracker.params import TrackerParams
+
+    monkeypatch.delenv("NRMLC_DATA", raising=False)
+    context = Context()
+    rows = dict(families(context))["n negative"]
+    assert params_differences(rows[1][1], context.base_params) == {"n_negative": TrackerParams.paper().n_negative}
+    assert TrackerParams.paper().n_negative == 150 != context.base_params.n_negative
+
+
 def test_peers_option(tmp_path, monkeypatch):
     from nrmlc.errors import DataError
 
