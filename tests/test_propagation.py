@@ -56,7 +56,8 @@ def test_template_sampling_switch_changes_the_templates_and_annulus_keeps_the_ra
     annulus = NRMLCTracker(seed=0, template_sampling="annulus", **FAST)
     for tracker in (scm, annulus):
         tracker.init(sequence.frame(0), sequence.init_box)
-    assert scm.templates.shape == annulus.templates.shape == (200, 1024)
+    p = scm.params
+    assert scm.templates.shape == annulus.templates.shape == (p.n_positive + p.n_negative, 1024)
     assert not np.array_equal(scm.negative_templates, annulus.negative_templates)
 
 

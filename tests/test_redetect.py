@@ -83,7 +83,7 @@ import numpy as np
 from nrmlc import NRMLCTracker
 from nrmlc.testing.scenes import jump_scene
 frames, truth = jump_scene()
-tracker = NRMLCTracker(seed=2)
+tracker = NRMLCTracker(seed=2, n_negative=150)  # 150 negatives: this scene then has frames that search
 tracker.init(frames[0], truth[0])
 boxes, searched = [], 0
 for frame in frames[1:]:
