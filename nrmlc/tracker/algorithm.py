@@ -382,12 +382,14 @@ class NRMLCTracker:
         states[:, 5] += noise[:, 5]
         return clamp_states(states, self.frame_shape, MIN_BOX_SIZE, p.patch_size)
 
-    def encode(self, candidates: np.ndarray) -> Coding:
+    def encode(self, candidates: np.ndarray, states: np.ndarray | None = None) -> Coding:
         """Code candidate vectors on the current templates (Algorithm 1 for each) and score them.
 
         Parameters
         ----------
         candidates : (n_candidates, patch_size**2) float32, unit-norm rows
+        states : (n_candidates, 6) float64, optional
+            The candidates' states, for ``motion_prior`` (None: no prior).
 
         Returns
         -------
@@ -414,10 +416,21 @@ class NRMLCTracker:
             recognised = error_positive < REDETECT_TRIGGER
             floor = term[recognised].min() if recognised.any() else 0.0
             log_confidence = log_confidence + np.where(recognised, term, floor)
+        if states is not None and p.motion_prior > 0:
+            log_confidence = log_confidence + self._log_motion_prior(states)
         return Coding(patches=candidates, dots=dots, neighbours=coded["neighbours"],
                       coefficients=coded["coefficients"], weights=coded["weights"], codes=coded["codes"],
                       error_positive=error_positive, error_negative=error_negative,
                       log_confidence=log_confidence, similarity=similarity)
+
+    def _log_motion_prior(self, states: np.ndarray) -> np.ndarray:
+        """(n,) log of a Gaussian on each state's centre around the previous estimate's, with
+        ``motion_prior`` times the motion model's translation std."""
+        p = self.params
+        size = self.state[2] * np.sqrt(0.5 * (1.0 + self.state[4] ** 2))
+        sigma = p.motion_prior * p.translation_sigmas(np.array([size]))[0]
+        scaled = (states[:, 0:2] - self.state[0:2]) / np.maximum(sigma, 1e-12)
+        return -0.5 * (scaled ** 2).sum(axis=1)
 
     def _generative_similarity(self, candidates: np.ndarray, log_confidence: np.ndarray) -> np.ndarray:
         """The generative term's similarity (n,) of each candidate: the ``generative_candidates``
@@ -441,7 +454,7 @@ class NRMLCTracker:
         """
         p = self.params
         states = self.sample_particles()
-        coding = self.encode(self.patches(frame, states))
+        coding = self.encode(self.patches(frame, states), states)
         n_local = len(states)
         best = int(np.argmax(coding.log_confidence))
         searched = needs_search(p, coding.error_positive[best])

@@ -158,6 +158,12 @@ class TrackerParams:
         ``affsig`` [4, 4, ...]): a small target's 2 template px (1/16 of its size) are fewer
         pixels than a fast step, a large target's are more and stay. Round 20, at seeds 10-14
         (docs/findings/round-20-fresh-seeds.md).
+    motion_prior : float
+        A Gaussian prior on the candidate's displacement from the previous estimate in the log
+        confidence (*ours*, round 35; 0 = off, the paper): log h gains ``-|d|^2 / 2`` with ``d``
+        the displacement in units of ``motion_prior`` times the translation noise's std
+        (:meth:`translation_sigmas` at the previous estimate's size). The estimate is then the
+        posterior's mode rather than the likelihood's.
     redetect_count : int
         Re-detection (*ours*; 0 = off, the paper). On a frame whose best candidate's code
         puts no weight on a positive template (eps_pos* = 1: the target looks like nothing
@@ -200,6 +206,7 @@ class TrackerParams:
     propagation: Literal["condensation", "best"] = "condensation"
     translation_noise: Literal["relative", "pixels"] = "relative"
     translation_floor: float = bounded(4.0, 0, MAX_MOTION_SIGMA[0])
+    motion_prior: float = bounded(0.0, 0, 1000)
 
     # -- templates (Sec. 3) ---------------------------------------------------------------
     n_positive: int = bounded(50, 1)
@@ -402,7 +409,8 @@ PRESETS: dict[str, dict] = {
 
 #: The fields by the part of the algorithm they govern (the sections of the class body).
 SECTIONS: dict[str, tuple[str, ...]] = {
-    "motion": ("n_particles", "motion_sigmas", "propagation", "translation_noise", "translation_floor"),
+    "motion": ("n_particles", "motion_sigmas", "propagation", "translation_noise", "translation_floor",
+               "motion_prior"),
     "templates": ("n_positive", "n_negative", "template_sampling", "positive_radius", "negative_radius",
                   "positive_sigma", "negative_push", "patch_size"),
     "coding": ("dictionary_sizes", "coding", "lam", "beta", "n_iterations"),

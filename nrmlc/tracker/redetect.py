@@ -44,7 +44,7 @@ def search(tracker, frame: np.ndarray, states: np.ndarray, coding) -> tuple:
     """
     p = tracker.params
     extra = tracker.diffuse(np.tile(tracker.state, (p.redetect_count, 1)), p.redetect_factor)
-    extra_coding = tracker.encode(tracker.patches(frame, extra))
+    extra_coding = tracker.encode(tracker.patches(frame, extra), extra)
     extra_coding = dataclasses.replace(extra_coding, log_confidence=np.where(
         extra_coding.error_positive < p.redetect_accept, extra_coding.log_confidence, -np.inf))
     return np.vstack([states, extra]), coding.joined(extra_coding)
