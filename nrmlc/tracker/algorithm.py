@@ -429,7 +429,8 @@ class NRMLCTracker:
         p = self.params
         size = self.state[2] * np.sqrt(0.5 * (1.0 + self.state[4] ** 2))
         sigma = p.motion_prior * p.translation_sigmas(np.array([size]))[0]
-        scaled = (states[:, 0:2] - self.state[0:2]) / np.maximum(sigma, 1e-12)
+        # An axis the motion model does not move on gets no prior (nothing to weigh there).
+        scaled = np.where(sigma > 0, (states[:, 0:2] - self.state[0:2]) / np.where(sigma > 0, sigma, 1.0), 0.0)
         return -0.5 * (scaled ** 2).sum(axis=1)
 
     def _generative_similarity(self, candidates: np.ndarray, log_confidence: np.ndarray) -> np.ndarray:
