@@ -176,6 +176,13 @@ class TrackerParams:
         A re-detection candidate can become the estimate (and carry weight) only if its
         eps_pos < this: a wide search would otherwise jump to whatever the negatives rank
         well, such as another player or the other jogger.
+    redetect_global, redetect_global_after : int
+        A search of the whole frame (*ours*, round 35; 0 = off): on a frame that runs the
+        search once the target has not been recognised (eps_pos* < ``redetect_accept``) for
+        ``redetect_global_after`` frames, this many more candidates are centred uniformly over
+        the frame, at the shape of the last recognised estimate; one counts only if its eps_pos
+        < ``redetect_global_accept`` (stricter than the local search's: a look-alike anywhere
+        in the frame is likelier than one near the last estimate).
     generative_weight : float
         A local-patch generative term in the confidence (*ours*, after SCM's generative
         model; 0 = off, the paper): log h gains ``generative_weight * log(similarity)``,
@@ -241,6 +248,9 @@ class TrackerParams:
     redetect_count: int = bounded(300, 0, MAX_PARTICLES)
     redetect_factor: float = bounded(4.0, 1, 100)
     redetect_accept: float = bounded(0.3, 0, 1, low_open=True)
+    redetect_global: int = bounded(0, 0, MAX_PARTICLES)
+    redetect_global_after: int = bounded(10, 0)
+    redetect_global_accept: float = bounded(0.15, 0, 1, low_open=True)
 
     # -- generative term (ours, after SCM; nrmlc.tracker.generative) ----------------------
     generative_weight: float = bounded(10.0, 0, 1000)
@@ -301,7 +311,7 @@ class TrackerParams:
     def memory_terms(self) -> dict[str, float]:
         """Bytes the largest per-frame arrays take, by the parameters that size them (an estimate
         with the copies a frame makes; the frame itself and the interpreter come on top)."""
-        candidates = self.n_particles + self.redetect_count
+        candidates = self.n_particles + self.redetect_count + self.redetect_global
         vector = self.patch_size**2
         templates = self.max_positive + self.n_negative
         local = ((self.patch_size - LOCAL_SIZE) // self.generative_step + 1) ** 2
@@ -417,7 +427,8 @@ SECTIONS: dict[str, tuple[str, ...]] = {
     "confidence": ("alpha", "confidence"),
     "updates": ("update_interval", "max_positive", "update_error_threshold", "occlusion_detection",
                 "occlusion_max_negative", "coefficient_tolerance"),
-    "redetection": ("redetect_count", "redetect_factor", "redetect_accept"),
+    "redetection": ("redetect_count", "redetect_factor", "redetect_accept", "redetect_global",
+                    "redetect_global_after", "redetect_global_accept"),
     "generative": ("generative_weight", "generative_candidates", "generative_neighbours", "generative_lam",
                    "generative_interval", "generative_step"),
 }
