@@ -502,7 +502,10 @@ class NRMLCTracker:
         positives = self.positive_templates
         kept = np.arange(len(positives), dtype=np.int64)
         blocked = p.occlusion_detection and result.occluded
-        if not blocked and result.error_positive < p.update_error_threshold:
+        threshold = p.update_error_threshold
+        if result.n_negative_used == 0:
+            threshold = max(threshold, p.update_threshold_no_negative)
+        if not blocked and result.error_positive < threshold:
             if len(positives) < p.max_positive:
                 positives = np.vstack([positives, new])
                 kept = np.append(kept, -1)

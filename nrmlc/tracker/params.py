@@ -240,6 +240,7 @@ class TrackerParams:
     update_interval: int = bounded(5, 1)
     max_positive: int = 100
     update_error_threshold: float = 0.1
+    update_threshold_no_negative: float = bounded(0.0, 0, 1)
     occlusion_detection: bool = True
     occlusion_max_negative: int = 2
     coefficient_tolerance: float = bounded(1e-6, 0)
@@ -425,7 +426,7 @@ SECTIONS: dict[str, tuple[str, ...]] = {
                   "positive_sigma", "negative_push", "patch_size"),
     "coding": ("dictionary_sizes", "coding", "lam", "beta", "n_iterations"),
     "confidence": ("alpha", "confidence"),
-    "updates": ("update_interval", "max_positive", "update_error_threshold", "occlusion_detection",
+    "updates": ("update_interval", "max_positive", "update_error_threshold", "update_threshold_no_negative", "occlusion_detection",
                 "occlusion_max_negative", "coefficient_tolerance"),
     "redetection": ("redetect_count", "redetect_factor", "redetect_accept", "redetect_global",
                     "redetect_global_after", "redetect_global_accept"),
