@@ -204,9 +204,6 @@ class NRMLCTracker:
         self.generative: LocalHistogramModel | None = None
         self.frame_shape: tuple | None = None
         self.initial_box: np.ndarray | None = None
-        #: The last estimate whose eps_pos* was under ``redetect_accept``, and the frames since.
-        self.recognised_state: np.ndarray | None = None
-        self.frames_unrecognised = 0
         self.particles: np.ndarray | None = None
         self.log_weights: np.ndarray | None = None
         self.positive_templates: np.ndarray | None = None
@@ -290,8 +287,6 @@ class NRMLCTracker:
         self.frame_shape = frame.shape
         self.state = box_to_state(box, p.patch_size)
         self.initial_box = box
-        self.recognised_state = self.state.copy()
-        self.frames_unrecognised = 0
         self.particles = None
         self.log_weights = None
         positives = self._sample_positives(frame, self.state)
@@ -387,14 +382,12 @@ class NRMLCTracker:
         states[:, 5] += noise[:, 5]
         return clamp_states(states, self.frame_shape, MIN_BOX_SIZE, p.patch_size)
 
-    def encode(self, candidates: np.ndarray, states: np.ndarray | None = None) -> Coding:
+    def encode(self, candidates: np.ndarray) -> Coding:
         """Code candidate vectors on the current templates (Algorithm 1 for each) and score them.
 
         Parameters
         ----------
         candidates : (n_candidates, patch_size**2) float32, unit-norm rows
-        states : (n_candidates, 6) float64, optional
-            The candidates' states, for ``motion_prior`` (None: no prior).
 
         Returns
         -------
@@ -421,22 +414,10 @@ class NRMLCTracker:
             recognised = error_positive < REDETECT_TRIGGER
             floor = term[recognised].min() if recognised.any() else 0.0
             log_confidence = log_confidence + np.where(recognised, term, floor)
-        if states is not None and p.motion_prior > 0:
-            log_confidence = log_confidence + self._log_motion_prior(states)
         return Coding(patches=candidates, dots=dots, neighbours=coded["neighbours"],
                       coefficients=coded["coefficients"], weights=coded["weights"], codes=coded["codes"],
                       error_positive=error_positive, error_negative=error_negative,
                       log_confidence=log_confidence, similarity=similarity)
-
-    def _log_motion_prior(self, states: np.ndarray) -> np.ndarray:
-        """(n,) log of a Gaussian on each state's centre around the previous estimate's, with
-        ``motion_prior`` times the motion model's translation std."""
-        p = self.params
-        size = self.state[2] * np.sqrt(0.5 * (1.0 + self.state[4] ** 2))
-        sigma = p.motion_prior * p.translation_sigmas(np.array([size]))[0]
-        # An axis the motion model does not move on gets no prior (nothing to weigh there).
-        scaled = np.where(sigma > 0, (states[:, 0:2] - self.state[0:2]) / np.where(sigma > 0, sigma, 1.0), 0.0)
-        return -0.5 * (scaled ** 2).sum(axis=1)
 
     def _generative_similarity(self, candidates: np.ndarray, log_confidence: np.ndarray) -> np.ndarray:
         """The generative term's similarity (n,) of each candidate: the ``generative_candidates``
@@ -460,7 +441,7 @@ class NRMLCTracker:
         """
         p = self.params
         states = self.sample_particles()
-        coding = self.encode(self.patches(frame, states), states)
+        coding = self.encode(self.patches(frame, states))
         n_local = len(states)
         best = int(np.argmax(coding.log_confidence))
         searched = needs_search(p, coding.error_positive[best])
@@ -476,11 +457,6 @@ class NRMLCTracker:
         negative = indices >= n_pos
         n_negative_used = int(np.count_nonzero(np.abs(codes[negative]) > p.coefficient_tolerance))
         self.state = states[best].copy()
-        if coding.error_positive[best] < p.redetect_accept:
-            self.recognised_state = self.state.copy()
-            self.frames_unrecognised = 0
-        else:
-            self.frames_unrecognised += 1
         result = FrameResult(
             state=self.state.copy(), box=state_to_box(self.state, p.patch_size),
             confidence=_exp_or_inf(log_confidence[best]), log_confidence=float(log_confidence[best]),

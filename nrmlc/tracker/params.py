@@ -158,12 +158,6 @@ class TrackerParams:
         ``affsig`` [4, 4, ...]): a small target's 2 template px (1/16 of its size) are fewer
         pixels than a fast step, a large target's are more and stay. Round 20, at seeds 10-14
         (docs/findings/round-20-fresh-seeds.md).
-    motion_prior : float
-        A Gaussian prior on the candidate's displacement from the previous estimate in the log
-        confidence (*ours*, round 35; 0 = off, the paper): log h gains ``-|d|^2 / 2`` with ``d``
-        the displacement in units of ``motion_prior`` times the translation noise's std
-        (:meth:`translation_sigmas` at the previous estimate's size). The estimate is then the
-        posterior's mode rather than the likelihood's.
     redetect_count : int
         Re-detection (*ours*; 0 = off, the paper). On a frame whose best candidate's code
         puts no weight on a positive template (eps_pos* = 1: the target looks like nothing
@@ -176,13 +170,6 @@ class TrackerParams:
         A re-detection candidate can become the estimate (and carry weight) only if its
         eps_pos < this: a wide search would otherwise jump to whatever the negatives rank
         well, such as another player or the other jogger.
-    redetect_global, redetect_global_after : int
-        A search of the whole frame (*ours*, round 35; 0 = off): on a frame that runs the
-        search once the target has not been recognised (eps_pos* < ``redetect_accept``) for
-        ``redetect_global_after`` frames, this many more candidates are centred uniformly over
-        the frame, at the shape of the last recognised estimate; one counts only if its eps_pos
-        < ``redetect_global_accept`` (stricter than the local search's: a look-alike anywhere
-        in the frame is likelier than one near the last estimate).
     generative_weight : float
         A local-patch generative term in the confidence (*ours*, after SCM's generative
         model; 0 = off, the paper): log h gains ``generative_weight * log(similarity)``,
@@ -213,7 +200,6 @@ class TrackerParams:
     propagation: Literal["condensation", "best"] = "condensation"
     translation_noise: Literal["relative", "pixels"] = "relative"
     translation_floor: float = bounded(4.0, 0, MAX_MOTION_SIGMA[0])
-    motion_prior: float = bounded(0.0, 0, 1000)
 
     # -- templates (Sec. 3) ---------------------------------------------------------------
     n_positive: int = bounded(50, 1)
@@ -248,9 +234,6 @@ class TrackerParams:
     redetect_count: int = bounded(300, 0, MAX_PARTICLES)
     redetect_factor: float = bounded(4.0, 1, 100)
     redetect_accept: float = bounded(0.3, 0, 1, low_open=True)
-    redetect_global: int = bounded(0, 0, MAX_PARTICLES)
-    redetect_global_after: int = bounded(10, 0)
-    redetect_global_accept: float = bounded(0.15, 0, 1, low_open=True)
 
     # -- generative term (ours, after SCM; nrmlc.tracker.generative) ----------------------
     generative_weight: float = bounded(10.0, 0, 1000)
@@ -311,7 +294,7 @@ class TrackerParams:
     def memory_terms(self) -> dict[str, float]:
         """Bytes the largest per-frame arrays take, by the parameters that size them (an estimate
         with the copies a frame makes; the frame itself and the interpreter come on top)."""
-        candidates = self.n_particles + self.redetect_count + self.redetect_global
+        candidates = self.n_particles + self.redetect_count
         vector = self.patch_size**2
         templates = self.max_positive + self.n_negative
         local = ((self.patch_size - LOCAL_SIZE) // self.generative_step + 1) ** 2
@@ -419,16 +402,14 @@ PRESETS: dict[str, dict] = {
 
 #: The fields by the part of the algorithm they govern (the sections of the class body).
 SECTIONS: dict[str, tuple[str, ...]] = {
-    "motion": ("n_particles", "motion_sigmas", "propagation", "translation_noise", "translation_floor",
-               "motion_prior"),
+    "motion": ("n_particles", "motion_sigmas", "propagation", "translation_noise", "translation_floor"),
     "templates": ("n_positive", "n_negative", "template_sampling", "positive_radius", "negative_radius",
                   "positive_sigma", "negative_push", "patch_size"),
     "coding": ("dictionary_sizes", "coding", "lam", "beta", "n_iterations"),
     "confidence": ("alpha", "confidence"),
     "updates": ("update_interval", "max_positive", "update_error_threshold", "occlusion_detection",
                 "occlusion_max_negative", "coefficient_tolerance"),
-    "redetection": ("redetect_count", "redetect_factor", "redetect_accept", "redetect_global",
-                    "redetect_global_after", "redetect_global_accept"),
+    "redetection": ("redetect_count", "redetect_factor", "redetect_accept"),
     "generative": ("generative_weight", "generative_candidates", "generative_neighbours", "generative_lam",
                    "generative_interval", "generative_step"),
 }
