@@ -204,6 +204,7 @@ class NRMLCTracker:
         self.generative: LocalHistogramModel | None = None
         self.frame_shape: tuple | None = None
         self.initial_box: np.ndarray | None = None
+        self.first_frame_mean: float | None = None
         self.particles: np.ndarray | None = None
         self.log_weights: np.ndarray | None = None
         self.positive_templates: np.ndarray | None = None
@@ -287,6 +288,7 @@ class NRMLCTracker:
         self.frame_shape = frame.shape
         self.state = box_to_state(box, p.patch_size)
         self.initial_box = box
+        self.first_frame_mean = float(frame.mean(dtype=np.float64))
         self.particles = None
         self.log_weights = None
         positives = self._sample_positives(frame, self.state)
@@ -318,6 +320,7 @@ class NRMLCTracker:
         if frame.shape != self.frame_shape:
             raise ParameterError(f"frame is {frame.shape[1]}x{frame.shape[0]} but init() saw "
                                  f"{self.frame_shape[1]}x{self.frame_shape[0]}")
+        frame = self._levelled(frame)
         self.frame_index += 1
         result, coding, best = self.step(frame)
         best_patch = coding.patches[best][None, :]
@@ -344,6 +347,13 @@ class NRMLCTracker:
         self.state = box_to_state(box, self.params.patch_size)
         self.particles = None
         self.log_weights = None
+
+    def _levelled(self, frame: np.ndarray) -> np.ndarray:
+        """``frame`` (height, width) float32 with its mean gray moved to the first frame's under
+        ``brightness = 'first_frame'``; as it is otherwise."""
+        if self.params.brightness == "raw":
+            return frame
+        return frame + np.float32(self.first_frame_mean - frame.mean(dtype=np.float64))
 
     # -- one frame -------------------------------------------------------
     def sample_particles(self) -> np.ndarray:

@@ -192,6 +192,11 @@ class TrackerParams:
         The candidates' local patches are cut every this many px (SCM's ``demo.m``: 2,
         196 patches of a 32x32 patch). *Ours*: 4, 49 patches (round 14). The atoms always
         come from the 2-px grid.
+    brightness : {'raw', 'first_frame'}
+        'raw' (the paper): the gray frame as it comes. 'first_frame' (*ours*, round 36, screened):
+        every frame is shifted by a constant so that its mean gray is the first frame's. A
+        camera's exposure moves every pixel's level together; the unit-norm patch cancels a
+        gain but not an offset, so an offset turns the target away from its positives.
     """
 
     # -- motion model and particles (Sec. 2, eq. 1) -------------------------------------
@@ -210,6 +215,7 @@ class TrackerParams:
     positive_sigma: float = bounded(1.0, 0, MAX_RADIUS)
     negative_push: float = bounded(0.25, 0, 2)
     patch_size: int = bounded(PATCH_SIZE, 4)
+    brightness: Literal["raw", "first_frame"] = "raw"
 
     # -- coding (Algorithm 1) -------------------------------------------------------------
     dictionary_sizes: tuple[int, ...] = (5, 8, 10)
@@ -404,7 +410,7 @@ PRESETS: dict[str, dict] = {
 SECTIONS: dict[str, tuple[str, ...]] = {
     "motion": ("n_particles", "motion_sigmas", "propagation", "translation_noise", "translation_floor"),
     "templates": ("n_positive", "n_negative", "template_sampling", "positive_radius", "negative_radius",
-                  "positive_sigma", "negative_push", "patch_size"),
+                  "positive_sigma", "negative_push", "patch_size", "brightness"),
     "coding": ("dictionary_sizes", "coding", "lam", "beta", "n_iterations"),
     "confidence": ("alpha", "confidence"),
     "updates": ("update_interval", "max_positive", "update_error_threshold", "occlusion_detection",
