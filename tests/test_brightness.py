@@ -1,4 +1,5 @@
-"""The brightness switch (round 36): every frame shifted to the first frame's mean gray."""
+"""The brightness switch (round 36, the default; 'raw' is the paper): every frame shifted to the
+first frame's mean gray."""
 import numpy as np
 
 from nrmlc import NRMLCTracker
@@ -18,16 +19,17 @@ def test_first_frame_brightness_cancels_an_exposure_offset_and_raw_does_not():
     # A camera whose exposure steps up by 0.15 gray from frame 5 on.
     shifted = np.where(np.arange(len(sequence)) >= 5, 0.15, 0.0)
     still = np.zeros(len(sequence))
-    levelled = _boxes(sequence, still, brightness="first_frame")
-    np.testing.assert_allclose(_boxes(sequence, shifted, brightness="first_frame"), levelled, atol=0.5)
-    raw = _boxes(sequence, shifted)
-    assert np.abs(raw - _boxes(sequence, still)).max() > 0.5
+    levelled = _boxes(sequence, still)
+    np.testing.assert_allclose(_boxes(sequence, shifted), levelled, atol=0.5)
+    raw = _boxes(sequence, shifted, brightness="raw")
+    assert np.abs(raw - _boxes(sequence, still, brightness="raw")).max() > 0.5
 
 
 def test_levelled_frame_has_the_first_frames_mean():
     sequence = SyntheticSequence(SyntheticSpec(name="t", seed=3, n_frames=3))
-    tracker = NRMLCTracker(seed=0, brightness="first_frame", **FAST)
+    tracker = NRMLCTracker(seed=0, **FAST)
     tracker.init(sequence.frame(0), sequence.init_box)
     frame = sequence.frame(1).astype(np.float32) + np.float32(0.3)
     assert abs(tracker._levelled(frame).mean(dtype=np.float64) - sequence.frame(0).mean(dtype=np.float64)) < 1e-5
-    assert NRMLCTracker(seed=0, **FAST).params.brightness == "raw"
+    assert NRMLCTracker(seed=0, **FAST).params.brightness == "first_frame"
+    assert NRMLCTracker(seed=0, **FAST).params.paper().brightness == "raw"
