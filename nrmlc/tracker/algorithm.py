@@ -205,6 +205,7 @@ class NRMLCTracker:
         self.frame_shape: tuple | None = None
         self.initial_box: np.ndarray | None = None
         self.first_frame_mean: float | None = None
+        self.first_frame_std: float | None = None
         self.particles: np.ndarray | None = None
         self.log_weights: np.ndarray | None = None
         self.positive_templates: np.ndarray | None = None
@@ -289,6 +290,7 @@ class NRMLCTracker:
         self.state = box_to_state(box, p.patch_size)
         self.initial_box = box
         self.first_frame_mean = float(frame.mean(dtype=np.float64))
+        self.first_frame_std = float(frame.std(dtype=np.float64))
         self.particles = None
         self.log_weights = None
         positives = self._sample_positives(frame, self.state)
@@ -353,7 +355,13 @@ class NRMLCTracker:
         ``brightness = 'first_frame'``; as it is otherwise."""
         if self.params.brightness == "raw":
             return frame
-        return frame + np.float32(self.first_frame_mean - frame.mean(dtype=np.float64))
+        mean = frame.mean(dtype=np.float64)
+        if self.params.brightness == "first_frame_affine":
+            std = frame.std(dtype=np.float64)
+            if std > 0 and self.first_frame_std > 0:
+                gain = self.first_frame_std / std
+                return frame * np.float32(gain) + np.float32(self.first_frame_mean - gain * mean)
+        return frame + np.float32(self.first_frame_mean - mean)
 
     # -- one frame -------------------------------------------------------
     def sample_particles(self) -> np.ndarray:
