@@ -205,7 +205,6 @@ class NRMLCTracker:
         self.frame_shape: tuple | None = None
         self.initial_box: np.ndarray | None = None
         self.first_frame_mean: float | None = None
-        self.first_frame_std: float | None = None
         self.particles: np.ndarray | None = None
         self.log_weights: np.ndarray | None = None
         self.positive_templates: np.ndarray | None = None
@@ -290,7 +289,6 @@ class NRMLCTracker:
         self.state = box_to_state(box, p.patch_size)
         self.initial_box = box
         self.first_frame_mean = float(frame.mean(dtype=np.float64))
-        self.first_frame_std = float(frame.std(dtype=np.float64))
         self.particles = None
         self.log_weights = None
         positives = self._sample_positives(frame, self.state)
@@ -353,30 +351,9 @@ class NRMLCTracker:
     def _levelled(self, frame: np.ndarray) -> np.ndarray:
         """``frame`` (height, width) float32 with its mean gray moved to the first frame's under
         ``brightness = 'first_frame'``; as it is otherwise."""
-        mode = self.params.brightness
-        if mode == "raw":
+        if self.params.brightness == "raw":
             return frame
-        mean = frame.mean(dtype=np.float64)
-        shifted = frame + np.float32(self.first_frame_mean - mean)
-        if mode == "first_frame":
-            return shifted
-        options = [shifted] if mode == "first_frame_affine" else [frame, shifted]
-        if mode in ("first_frame_affine", "chosen_affine"):
-            std = frame.std(dtype=np.float64)
-            if std > 0 and self.first_frame_std > 0:
-                gain = self.first_frame_std / std
-                options.append(frame * np.float32(gain) + np.float32(self.first_frame_mean - gain * mean))
-        if mode == "first_frame_affine":
-            return options[-1]
-        # The levelling under which the last estimate's place codes best on the positives.
-        patches = np.vstack([self.patches(option, self.state[None, :]) for option in options])
-        dots = candidate_template_dots(patches, self.templates)
-        ridge_c, ridge_w = self.params.ridges
-        coded = code_candidates(patches, dots, self.template_gram, self.template_sq_norms,
-                                np.asarray(self.params.dictionary_sizes, dtype=np.int64),
-                                len(self.positive_templates), ridge_c, ridge_w,
-                                self.params.coding == "constrained", self.params.n_iterations)
-        return options[int(np.argmin(coded["error_positive"]))]
+        return frame + np.float32(self.first_frame_mean - frame.mean(dtype=np.float64))
 
     # -- one frame -------------------------------------------------------
     def sample_particles(self) -> np.ndarray:

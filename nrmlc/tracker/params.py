@@ -192,16 +192,13 @@ class TrackerParams:
         The candidates' local patches are cut every this many px (SCM's ``demo.m``: 2,
         196 patches of a 32x32 patch). *Ours*: 4, 49 patches (round 14). The atoms always
         come from the 2-px grid.
-    brightness : {'first_frame', 'raw', 'first_frame_affine', 'chosen', 'chosen_affine'}
+    brightness : {'first_frame', 'raw'}
         'raw' (the paper, the ``paper`` preset): the gray frame as it comes. 'first_frame'
         (*ours*, the default): every frame is shifted by one constant so that its mean gray is
         the first frame's. A camera's exposure moves every pixel's level together; the unit-norm
         patch cancels a gain but not an offset, and an offset turns the target away from its
         positives. Round 36, at seeds 115-119: A +0.020 ± 0.011, B +0.002 ± 0.006, synthetic
-        +0.007 ± 0.001 (docs/DEVIATIONS.md). Screened in round 37, not adopted:
-        'first_frame_affine' matches the standard deviation as well; 'chosen' / 'chosen_affine'
-        take per frame whichever of raw / offset (/ gain and offset) codes the previous
-        estimate's patch with the lowest eps_pos.
+        +0.007 ± 0.001 (docs/DEVIATIONS.md).
     """
 
     # -- motion model and particles (Sec. 2, eq. 1) -------------------------------------
@@ -220,7 +217,7 @@ class TrackerParams:
     positive_sigma: float = bounded(1.0, 0, MAX_RADIUS)
     negative_push: float = bounded(0.25, 0, 2)
     patch_size: int = bounded(PATCH_SIZE, 4)
-    brightness: Literal["first_frame", "raw", "first_frame_affine", "chosen", "chosen_affine"] = "first_frame"
+    brightness: Literal["first_frame", "raw"] = "first_frame"
 
     # -- coding (Algorithm 1) -------------------------------------------------------------
     dictionary_sizes: tuple[int, ...] = (5, 8, 10)
