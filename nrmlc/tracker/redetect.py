@@ -19,9 +19,14 @@ import numpy as np
 REDETECT_TRIGGER = 0.99
 
 
-def needs_search(params, best_error_positive: float) -> bool:
-    """Whether this frame runs the search (it is on, and the best candidate uses no positive)."""
-    return params.redetect_count > 0 and best_error_positive >= REDETECT_TRIGGER
+def needs_search(params, best_error_positive: float, best_error_negative: float) -> bool:
+    """Whether this frame runs the search: it is on, and the best candidate uses no positive
+    (or, under ``redetect_trigger = 'negative'``, looks more like the negatives)."""
+    if params.redetect_count == 0:
+        return False
+    if params.redetect_trigger == "negative" and best_error_positive > best_error_negative:
+        return True
+    return best_error_positive >= REDETECT_TRIGGER
 
 
 def search(tracker, frame: np.ndarray, states: np.ndarray, coding) -> tuple:
