@@ -81,6 +81,26 @@ def test_the_negative_trigger_also_searches_where_the_best_looks_like_the_negati
     assert not needs_search(TrackerParams(redetect_trigger="negative", redetect_count=0), 0.45, 0.2)
 
 
+def test_the_margin_refuses_search_candidates_the_negatives_code():
+    frames, truth = jump_scene(jump_frame=JUMP_FRAME)
+    for margin in (0.0, 0.5):
+        params = TrackerParams(n_particles=200, redetect_count=150, redetect_margin=margin)
+        tracker = NRMLCTracker(seed=0, params=params)
+        tracker.init(frames[0], truth[0])
+        for frame in frames[1:JUMP_FRAME + 1]:
+            tracker.update(frame)
+        assert tracker.last.redetect_searched
+        coded = tracker.last_coding
+        extra_ep, extra_en = coded.error_positive[200:], coded.error_negative[200:]
+        counted = np.isfinite(coded.log_confidence[200:])
+        expected = extra_ep < 0.3
+        if margin > 0:
+            expected &= extra_en - extra_ep >= margin
+        assert np.array_equal(counted, expected)
+    # The margin refused some candidate the acceptance alone lets count (else this tests nothing).
+    assert np.any((extra_ep < 0.3) & ~counted)
+
+
 def test_paper_preset_has_no_redetection():
     assert TrackerParams.paper().redetect_count == 0
     assert TrackerParams().redetect_count > 0

@@ -44,12 +44,15 @@ def search(tracker, frame: np.ndarray, states: np.ndarray, coding) -> tuple:
     Returns
     -------
     states (n + r, 6) and their Coding (n + r candidates), with r = ``redetect_count``. A search
-    candidate whose eps_pos is not below ``redetect_accept`` gets log h = -inf: it can be
-    neither the estimate nor resampled.
+    candidate whose eps_pos is not below ``redetect_accept`` (or, with ``redetect_margin``, whose
+    eps_neg - eps_pos is below it) gets log h = -inf: it can be neither the estimate nor resampled.
     """
     p = tracker.params
     extra = tracker.diffuse(np.tile(tracker.state, (p.redetect_count, 1)), p.redetect_factor)
     extra_coding = tracker.encode(tracker.patches(frame, extra))
+    counts = extra_coding.error_positive < p.redetect_accept
+    if p.redetect_margin > 0:
+        counts &= extra_coding.error_negative - extra_coding.error_positive >= p.redetect_margin
     extra_coding = dataclasses.replace(extra_coding, log_confidence=np.where(
-        extra_coding.error_positive < p.redetect_accept, extra_coding.log_confidence, -np.inf))
+        counts, extra_coding.log_confidence, -np.inf))
     return np.vstack([states, extra]), coding.joined(extra_coding)
