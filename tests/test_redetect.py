@@ -13,7 +13,7 @@ import pytest
 from nrmlc import NRMLCTracker, TrackerParams
 from nrmlc.metrics import overlaps
 from nrmlc.testing.scenes import jump_scene
-from nrmlc.tracker.redetect import REDETECT_TRIGGER, needs_search
+from nrmlc.tracker.redetect import REDETECT_TRIGGER
 
 REPO_ROOT = Path(__file__).resolve().parent.parent
 JUMP_FRAME = 4
@@ -68,37 +68,6 @@ def test_only_confident_redetection_candidates_carry_weight():
     weights = np.exp(tracker.log_weights - tracker.log_weights.max())
     assert np.all(weights[200:][extra_error >= 0.3] == 0) and weights[:200].sum() > 0
     assert tracker.sample_particles().shape == (200, 6)
-
-
-def test_the_negative_trigger_also_searches_where_the_best_looks_like_the_negatives():
-    plain, negative = TrackerParams(), TrackerParams(redetect_trigger="negative")
-    assert plain.redetect_trigger == "no_positive"
-    # A captured box: the positives take part (eps_pos* 0.45) but the negatives code it better.
-    assert not needs_search(plain, 0.45, 0.2) and needs_search(negative, 0.45, 0.2)
-    # A recognised target, and a frame whose code uses no positive: the same under both.
-    assert not needs_search(negative, 0.05, 0.9) and not needs_search(plain, 0.05, 0.9)
-    assert needs_search(plain, 1.0, 1.0) and needs_search(negative, 1.0, 1.0)
-    assert not needs_search(TrackerParams(redetect_trigger="negative", redetect_count=0), 0.45, 0.2)
-
-
-def test_the_margin_refuses_search_candidates_the_negatives_code():
-    frames, truth = jump_scene(jump_frame=JUMP_FRAME)
-    for margin in (0.0, 0.5):
-        params = TrackerParams(n_particles=200, redetect_count=150, redetect_margin=margin)
-        tracker = NRMLCTracker(seed=0, params=params)
-        tracker.init(frames[0], truth[0])
-        for frame in frames[1:JUMP_FRAME + 1]:
-            tracker.update(frame)
-        assert tracker.last.redetect_searched
-        coded = tracker.last_coding
-        extra_ep, extra_en = coded.error_positive[200:], coded.error_negative[200:]
-        counted = np.isfinite(coded.log_confidence[200:])
-        expected = extra_ep < 0.3
-        if margin > 0:
-            expected &= extra_en - extra_ep >= margin
-        assert np.array_equal(counted, expected)
-    # The margin refused some candidate the acceptance alone lets count (else this tests nothing).
-    assert np.any((extra_ep < 0.3) & ~counted)
 
 
 def test_paper_preset_has_no_redetection():

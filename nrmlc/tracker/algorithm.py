@@ -454,7 +454,7 @@ class NRMLCTracker:
         coding = self.encode(self.patches(frame, states))
         n_local = len(states)
         best = int(np.argmax(coding.log_confidence))
-        searched = needs_search(p, coding.error_positive[best], coding.error_negative[best])
+        searched = needs_search(p, coding.error_positive[best])
         if searched:
             states, coding = search(self, frame, states, coding)
             best = int(np.argmax(coding.log_confidence))

@@ -170,16 +170,6 @@ class TrackerParams:
         A re-detection candidate can become the estimate (and carry weight) only if its
         eps_pos < this: a wide search would otherwise jump to whatever the negatives rank
         well, such as another player or the other jogger.
-    redetect_trigger : {'no_positive', 'negative'}
-        When a frame runs the search. 'no_positive': eps_pos* = 1, as above. 'negative' (*ours*,
-        round 38): also when the best candidate looks more like the negatives than the
-        positives (eps_pos* > eps_neg*, a confidence h below 1), as on a look-alike that has
-        captured the box while the target, still recognised, walks away.
-    redetect_margin : float
-        A search candidate counts only if, beside ``redetect_accept``, it looks like the target
-        by this much more than like the background, eps_neg - eps_pos >= ``redetect_margin``
-        (*ours*, round 38; 0 = no such condition): a look-alike such as another player is
-        coded partly by the negatives drawn around the target, the target itself hardly.
     generative_weight : float
         A local-patch generative term in the confidence (*ours*, after SCM's generative
         model; 0 = off, the paper): log h gains ``generative_weight * log(similarity)``,
@@ -252,8 +242,6 @@ class TrackerParams:
     redetect_count: int = bounded(300, 0, MAX_PARTICLES)
     redetect_factor: float = bounded(4.0, 1, 100)
     redetect_accept: float = bounded(0.3, 0, 1, low_open=True)
-    redetect_trigger: Literal["no_positive", "negative"] = "no_positive"
-    redetect_margin: float = bounded(0.0, 0, 1)
 
     # -- generative term (ours, after SCM; nrmlc.tracker.generative) ----------------------
     generative_weight: float = bounded(10.0, 0, 1000)
@@ -430,8 +418,7 @@ SECTIONS: dict[str, tuple[str, ...]] = {
     "confidence": ("alpha", "confidence"),
     "updates": ("update_interval", "max_positive", "update_error_threshold", "occlusion_detection",
                 "occlusion_max_negative", "coefficient_tolerance"),
-    "redetection": ("redetect_count", "redetect_factor", "redetect_accept", "redetect_trigger",
-                    "redetect_margin"),
+    "redetection": ("redetect_count", "redetect_factor", "redetect_accept"),
     "generative": ("generative_weight", "generative_candidates", "generative_neighbours", "generative_lam",
                    "generative_interval", "generative_step"),
 }

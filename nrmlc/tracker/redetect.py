@@ -19,14 +19,9 @@ import numpy as np
 REDETECT_TRIGGER = 0.99
 
 
-def needs_search(params, best_error_positive: float, best_error_negative: float) -> bool:
-    """Whether this frame runs the search: it is on, and the best candidate uses no positive
-    (or, under ``redetect_trigger = 'negative'``, looks more like the negatives)."""
-    if params.redetect_count == 0:
-        return False
-    if params.redetect_trigger == "negative" and best_error_positive > best_error_negative:
-        return True
-    return best_error_positive >= REDETECT_TRIGGER
+def needs_search(params, best_error_positive: float) -> bool:
+    """Whether this frame runs the search (it is on, and the best candidate uses no positive)."""
+    return params.redetect_count > 0 and best_error_positive >= REDETECT_TRIGGER
 
 
 def search(tracker, frame: np.ndarray, states: np.ndarray, coding) -> tuple:
@@ -44,15 +39,12 @@ def search(tracker, frame: np.ndarray, states: np.ndarray, coding) -> tuple:
     Returns
     -------
     states (n + r, 6) and their Coding (n + r candidates), with r = ``redetect_count``. A search
-    candidate whose eps_pos is not below ``redetect_accept`` (or, with ``redetect_margin``, whose
-    eps_neg - eps_pos is below it) gets log h = -inf: it can be neither the estimate nor resampled.
+    candidate whose eps_pos is not below ``redetect_accept`` gets log h = -inf: it can be
+    neither the estimate nor resampled.
     """
     p = tracker.params
     extra = tracker.diffuse(np.tile(tracker.state, (p.redetect_count, 1)), p.redetect_factor)
     extra_coding = tracker.encode(tracker.patches(frame, extra))
-    counts = extra_coding.error_positive < p.redetect_accept
-    if p.redetect_margin > 0:
-        counts &= extra_coding.error_negative - extra_coding.error_positive >= p.redetect_margin
     extra_coding = dataclasses.replace(extra_coding, log_confidence=np.where(
-        counts, extra_coding.log_confidence, -np.inf))
+        extra_coding.error_positive < p.redetect_accept, extra_coding.log_confidence, -np.inf))
     return np.vstack([states, extra]), coding.joined(extra_coding)
