@@ -13,7 +13,7 @@ import pytest
 from nrmlc import NRMLCTracker, TrackerParams
 from nrmlc.metrics import overlaps
 from nrmlc.testing.scenes import jump_scene
-from nrmlc.tracker.redetect import REDETECT_TRIGGER
+from nrmlc.tracker.redetect import REDETECT_TRIGGER, needs_search
 
 REPO_ROOT = Path(__file__).resolve().parent.parent
 JUMP_FRAME = 4
@@ -68,6 +68,22 @@ def test_only_confident_redetection_candidates_carry_weight():
     weights = np.exp(tracker.log_weights - tracker.log_weights.max())
     assert np.all(weights[200:][extra_error >= 0.3] == 0) and weights[:200].sum() > 0
     assert tracker.sample_particles().shape == (200, 6)
+
+
+def test_the_negative_trigger_also_searches_where_the_best_looks_like_the_negatives():
+    plain, negative = TrackerParams(), TrackerParams(redetect_trigger="negative")
+    assert plain.redetect_trigger == "no_positive"
+    # A captured box: the positives take part (eps_pos* 0.45) but the negatives code it better.
+    assert not needs_search(plain, 0.45, 0.2) and needs_search(negative, 0.45, 0.2)
+    # A recognised target, and a frame whose code uses no positive: the same under both.
+    assert not needs_search(negative, 0.05, 0.9) and not needs_search(plain, 0.05, 0.9)
+    assert needs_search(plain, 1.0, 1.0) and needs_search(negative, 1.0, 1.0)
+    assert not needs_search(TrackerParams(redetect_trigger="negative", redetect_count=0), 0.45, 0.2)
+    after = TrackerParams(redetect_trigger="negative_after_recognised")
+    # Only a sudden loss: the frame before was recognised (eps_pos* under the update threshold).
+    assert needs_search(after, 0.45, 0.2, previous_error_positive=0.02)
+    assert not needs_search(after, 0.45, 0.2, previous_error_positive=0.4)
+    assert needs_search(after, 1.0, 1.0, previous_error_positive=0.4)
 
 
 def test_paper_preset_has_no_redetection():

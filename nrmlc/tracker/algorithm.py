@@ -454,7 +454,8 @@ class NRMLCTracker:
         coding = self.encode(self.patches(frame, states))
         n_local = len(states)
         best = int(np.argmax(coding.log_confidence))
-        searched = needs_search(p, coding.error_positive[best])
+        previous = self.last.error_positive if self.last is not None else 0.0
+        searched = needs_search(p, coding.error_positive[best], coding.error_negative[best], previous)
         if searched:
             states, coding = search(self, frame, states, coding)
             best = int(np.argmax(coding.log_confidence))

@@ -170,6 +170,15 @@ class TrackerParams:
         A re-detection candidate can become the estimate (and carry weight) only if its
         eps_pos < this: a wide search would otherwise jump to whatever the negatives rank
         well, such as another player or the other jogger.
+    redetect_trigger : {'no_positive', 'negative', 'negative_after_recognised'}
+        When a frame runs the search. 'no_positive': eps_pos* = 1, as above. 'negative' (*ours*,
+        round 38): also when the best candidate looks more like the negatives than the
+        positives (eps_pos* > eps_neg*, a confidence h below 1), as on a look-alike that has
+        captured the box while the target, still recognised, walks away.
+        'negative_after_recognised': that only on a frame after one whose estimate was
+        recognised well enough to join the positives (eps_pos* < ``update_error_threshold``):
+        a sudden loss (blur, a fast step), not a box that has looked negative for a while (a
+        crowd of look-alikes, an occluder).
     generative_weight : float
         A local-patch generative term in the confidence (*ours*, after SCM's generative
         model; 0 = off, the paper): log h gains ``generative_weight * log(similarity)``,
@@ -242,6 +251,7 @@ class TrackerParams:
     redetect_count: int = bounded(300, 0, MAX_PARTICLES)
     redetect_factor: float = bounded(4.0, 1, 100)
     redetect_accept: float = bounded(0.3, 0, 1, low_open=True)
+    redetect_trigger: Literal["no_positive", "negative", "negative_after_recognised"] = "no_positive"
 
     # -- generative term (ours, after SCM; nrmlc.tracker.generative) ----------------------
     generative_weight: float = bounded(10.0, 0, 1000)
@@ -418,7 +428,7 @@ SECTIONS: dict[str, tuple[str, ...]] = {
     "confidence": ("alpha", "confidence"),
     "updates": ("update_interval", "max_positive", "update_error_threshold", "occlusion_detection",
                 "occlusion_max_negative", "coefficient_tolerance"),
-    "redetection": ("redetect_count", "redetect_factor", "redetect_accept"),
+    "redetection": ("redetect_count", "redetect_factor", "redetect_accept", "redetect_trigger"),
     "generative": ("generative_weight", "generative_candidates", "generative_neighbours", "generative_lam",
                    "generative_interval", "generative_step"),
 }

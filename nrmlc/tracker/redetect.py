@@ -19,9 +19,20 @@ import numpy as np
 REDETECT_TRIGGER = 0.99
 
 
-def needs_search(params, best_error_positive: float) -> bool:
-    """Whether this frame runs the search (it is on, and the best candidate uses no positive)."""
-    return params.redetect_count > 0 and best_error_positive >= REDETECT_TRIGGER
+def needs_search(params, best_error_positive: float, best_error_negative: float,
+                 previous_error_positive: float = 0.0) -> bool:
+    """Whether this frame runs the search: it is on, and the best candidate uses no positive
+    (or, under ``redetect_trigger = 'negative'``, looks more like the negatives; under
+    'negative_after_recognised', that after a frame whose eps_pos* was under the update threshold,
+    ``previous_error_positive``)."""
+    if params.redetect_count == 0:
+        return False
+    if best_error_positive > best_error_negative and (
+            params.redetect_trigger == "negative"
+            or (params.redetect_trigger == "negative_after_recognised"
+                and previous_error_positive < params.update_error_threshold)):
+        return True
+    return best_error_positive >= REDETECT_TRIGGER
 
 
 def search(tracker, frame: np.ndarray, states: np.ndarray, coding) -> tuple:
