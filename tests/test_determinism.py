@@ -85,3 +85,33 @@ def test_same_seed_same_boxes_in_process():
     np.testing.assert_array_equal(boxes(tracker), first)  # init() reseeds
     np.testing.assert_array_equal(boxes(NRMLCTracker(seed=3, **settings)), first)
     assert not np.array_equal(boxes(NRMLCTracker(seed=4, **settings)), first)
+
+
+def test_api_boxes_do_not_depend_on_blas_threads():
+    """A user who calls the tracker without :func:`nrmlc.config.set_threads` leaves numpy's BLAS
+    at its own thread count: the boxes are still those of one BLAS thread (the large products
+    hold BLAS to one thread themselves; every other product is too small for OpenBLAS to split)."""
+    from threadpoolctl import threadpool_info, threadpool_limits
+
+    from nrmlc.data import synthetic_suite
+
+    if max((info["num_threads"] for info in threadpool_info() if info["user_api"] == "blas"), default=1) < 2:
+        pytest.skip("numpy's BLAS runs one thread here")
+    sequence = synthetic_suite(n_frames=12, n_sequences=1)[0]
+    frames = list(sequence)
+
+    def run(blas_threads: int) -> tuple:
+        """The boxes, and every candidate's log confidence on each frame (continuous: a rounding
+        difference shows there even where it moves no box)."""
+        with threadpool_limits(limits=blas_threads, user_api="blas"):
+            tracker = NRMLCTracker(seed=2)
+            tracker.init(frames[0], sequence.init_box)
+            boxes, confidences = [], []
+            for frame in frames[1:]:
+                boxes.append(tracker.update(frame))
+                confidences.append(tracker.log_weights.copy())
+            return np.array(boxes), np.concatenate(confidences)
+
+    (boxes_2, confidences_2), (boxes_1, confidences_1) = run(2), run(1)
+    np.testing.assert_array_equal(boxes_2, boxes_1)
+    np.testing.assert_array_equal(confidences_2, confidences_1)
