@@ -41,7 +41,7 @@ from nrmlc.kernels.distance import candidate_template_dots, template_gram
 from nrmlc.kernels.warp import warp_patches
 from nrmlc.tracker.generative import LocalHistogramModel
 from nrmlc.tracker.params import TrackerParams
-from nrmlc.tracker.redetect import REDETECT_TRIGGER, needs_search, search
+from nrmlc.tracker.redetect import REDETECT_TRIGGER, needs_search, quiet_search, search
 from nrmlc.tracker.templates import (SCM_PUSH_INIT, SCM_PUSH_UPDATE, negative_states, positive_states,
                                      scm_negative_states, scm_positive_states)
 
@@ -195,6 +195,7 @@ class NRMLCTracker:
             raise ParameterError(f"parameter seed: must be a non-negative integer, got {seed!r}")
         self.seed = int(seed)
         self.rng = np.random.default_rng(self.seed)
+        self.search_rng = np.random.default_rng([self.seed, 1])
         self.frame_index = -1
         self.state: np.ndarray | None = None
         self.last: FrameResult | None = None
@@ -285,6 +286,7 @@ class NRMLCTracker:
         box = clip_initial_box(box, frame.shape)
         p = self.params
         self.rng = np.random.default_rng(self.seed)
+        self.search_rng = np.random.default_rng([self.seed, 1])
         self.frame_shape = frame.shape
         self.state = box_to_state(box, p.patch_size)
         self.initial_box = box
@@ -371,11 +373,12 @@ class NRMLCTracker:
             states = np.tile(self.state, (n, 1))
         return self.diffuse(states)
 
-    def diffuse(self, states: np.ndarray, translation_factor: float = 1.0) -> np.ndarray:
+    def diffuse(self, states: np.ndarray, translation_factor: float = 1.0, rng=None) -> np.ndarray:
         """Add the motion model's noise to ``states`` (n, 6) in place, with the translation
-        noise ``translation_factor`` times larger (re-detection); clamp them."""
+        noise ``translation_factor`` times larger (re-detection); clamp them. ``rng``: the
+        generator to draw from (default: the tracker's)."""
         p = self.params
-        standard = self.rng.standard_normal((len(states), 6))
+        standard = (self.rng if rng is None else rng).standard_normal((len(states), 6))
         noise = standard * np.asarray(p.motion_sigmas)
         if p.translation_noise == "relative":
             size = states[:, 2] * np.sqrt(0.5 * (1.0 + states[:, 4] ** 2))
@@ -457,8 +460,11 @@ class NRMLCTracker:
         previous = self.last.error_positive if self.last is not None else 0.0
         searched = needs_search(p, coding.error_positive[best], coding.error_negative[best], previous)
         if searched:
-            states, coding = search(self, frame, states, coding)
-            best = int(np.argmax(coding.log_confidence))
+            quiet = quiet_search(p, coding.error_positive[best])
+            found_states, found = search(self, frame, states, coding, self.search_rng if quiet else None)
+            found_best = int(np.argmax(found.log_confidence))
+            if not quiet or found_best >= n_local:
+                states, coding, best = found_states, found, found_best
         log_confidence = coding.log_confidence
         self.particles = states
         self.log_weights = log_confidence

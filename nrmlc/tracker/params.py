@@ -179,6 +179,11 @@ class TrackerParams:
         recognised well enough to join the positives (eps_pos* < ``update_error_threshold``):
         a sudden loss (blur, a fast step), not a box that has looked negative for a while (a
         crowd of look-alikes, an occluder).
+        'negative_after_recognised_quiet' (round 39): as 'negative_after_recognised', but a search
+        that only this trigger runs (eps_pos* < 1) draws from a generator of its own and leaves the
+        frame as it was unless one of its candidates becomes the estimate, so a search that finds
+        nothing changes nothing later (without it, its draws and its candidates in the resampling
+        moved every later frame).
     generative_weight : float
         A local-patch generative term in the confidence (*ours*, after SCM's generative
         model; 0 = off, the paper): log h gains ``generative_weight * log(similarity)``,
@@ -251,7 +256,8 @@ class TrackerParams:
     redetect_count: int = bounded(300, 0, MAX_PARTICLES)
     redetect_factor: float = bounded(4.0, 1, 100)
     redetect_accept: float = bounded(0.3, 0, 1, low_open=True)
-    redetect_trigger: Literal["no_positive", "negative", "negative_after_recognised"] = "no_positive"
+    redetect_trigger: Literal["no_positive", "negative", "negative_after_recognised",
+                              "negative_after_recognised_quiet"] = "no_positive"
 
     # -- generative term (ours, after SCM; nrmlc.tracker.generative) ----------------------
     generative_weight: float = bounded(10.0, 0, 1000)

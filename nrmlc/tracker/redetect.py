@@ -29,13 +29,19 @@ def needs_search(params, best_error_positive: float, best_error_negative: float,
         return False
     if best_error_positive > best_error_negative and (
             params.redetect_trigger == "negative"
-            or (params.redetect_trigger == "negative_after_recognised"
+            or (params.redetect_trigger.startswith("negative_after_recognised")
                 and previous_error_positive < params.update_error_threshold)):
         return True
     return best_error_positive >= REDETECT_TRIGGER
 
 
-def search(tracker, frame: np.ndarray, states: np.ndarray, coding) -> tuple:
+def quiet_search(params, best_error_positive: float) -> bool:
+    """Whether this frame's search (:func:`needs_search` said it runs) is one only the quiet
+    trigger runs: it then draws from its own generator and is undone unless it finds the estimate."""
+    return params.redetect_trigger == "negative_after_recognised_quiet" and best_error_positive < REDETECT_TRIGGER
+
+
+def search(tracker, frame: np.ndarray, states: np.ndarray, coding, rng=None) -> tuple:
     """This frame's particles and their coding with the search's candidates appended.
 
     Parameters
@@ -46,6 +52,8 @@ def search(tracker, frame: np.ndarray, states: np.ndarray, coding) -> tuple:
     states : (n, 6) float64
     coding : nrmlc.tracker.algorithm.Coding
         What :meth:`NRMLCTracker.encode` gave for the particles' patches.
+    rng : numpy.random.Generator, optional
+        The generator of the search's draws (default: the tracker's).
 
     Returns
     -------
@@ -54,7 +62,7 @@ def search(tracker, frame: np.ndarray, states: np.ndarray, coding) -> tuple:
     neither the estimate nor resampled.
     """
     p = tracker.params
-    extra = tracker.diffuse(np.tile(tracker.state, (p.redetect_count, 1)), p.redetect_factor)
+    extra = tracker.diffuse(np.tile(tracker.state, (p.redetect_count, 1)), p.redetect_factor, rng)
     extra_coding = tracker.encode(tracker.patches(frame, extra))
     extra_coding = dataclasses.replace(extra_coding, log_confidence=np.where(
         extra_coding.error_positive < p.redetect_accept, extra_coding.log_confidence, -np.inf))
