@@ -13,7 +13,7 @@ import pytest
 from nrmlc import NRMLCTracker, TrackerParams
 from nrmlc.metrics import overlaps
 from nrmlc.testing.scenes import jump_scene
-from nrmlc.tracker.redetect import REDETECT_TRIGGER, needs_search, quiet_search
+from nrmlc.tracker.redetect import REDETECT_TRIGGER, needs_search, quiet_find_kept, quiet_search
 
 REPO_ROOT = Path(__file__).resolve().parent.parent
 JUMP_FRAME = 4
@@ -89,6 +89,11 @@ def test_the_negative_trigger_also_searches_where_the_best_looks_like_the_negati
     assert not needs_search(quiet, 0.45, 0.2, previous_error_positive=0.4)
     # Quiet only where the default's trigger would not have searched.
     assert quiet_search(quiet, 0.45) and not quiet_search(quiet, 1.0) and not quiet_search(after, 0.45)
+    strict = TrackerParams(redetect_trigger="negative_after_recognised_quiet_strict")
+    assert quiet_search(strict, 0.45) and not quiet_search(strict, 1.0)
+    # The strict form keeps only a find recognised as well as a result that joins the positives.
+    assert quiet_find_kept(quiet, 0.23) and not quiet_find_kept(strict, 0.23)
+    assert quiet_find_kept(strict, 0.05)
 
 
 def test_paper_preset_has_no_redetection():

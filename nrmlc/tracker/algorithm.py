@@ -41,7 +41,7 @@ from nrmlc.kernels.distance import candidate_template_dots, template_gram
 from nrmlc.kernels.warp import warp_patches
 from nrmlc.tracker.generative import LocalHistogramModel
 from nrmlc.tracker.params import TrackerParams
-from nrmlc.tracker.redetect import REDETECT_TRIGGER, needs_search, quiet_search, search
+from nrmlc.tracker.redetect import REDETECT_TRIGGER, needs_search, quiet_find_kept, quiet_search, search
 from nrmlc.tracker.templates import (SCM_PUSH_INIT, SCM_PUSH_UPDATE, negative_states, positive_states,
                                      scm_negative_states, scm_positive_states)
 
@@ -463,7 +463,8 @@ class NRMLCTracker:
             quiet = quiet_search(p, coding.error_positive[best])
             found_states, found = search(self, frame, states, coding, self.search_rng if quiet else None)
             found_best = int(np.argmax(found.log_confidence))
-            if not quiet or found_best >= n_local:
+            if not quiet or (found_best >= n_local
+                             and quiet_find_kept(p, found.error_positive[found_best])):
                 states, coding, best = found_states, found, found_best
         log_confidence = coding.log_confidence
         self.particles = states

@@ -170,7 +170,7 @@ class TrackerParams:
         A re-detection candidate can become the estimate (and carry weight) only if its
         eps_pos < this: a wide search would otherwise jump to whatever the negatives rank
         well, such as another player or the other jogger.
-    redetect_trigger : {'no_positive', 'negative', 'negative_after_recognised'}
+    redetect_trigger : {'no_positive', 'negative', 'negative_after_recognised', ...}
         When a frame runs the search. 'no_positive': eps_pos* = 1, as above. 'negative' (*ours*,
         round 38): also when the best candidate looks more like the negatives than the
         positives (eps_pos* > eps_neg*, a confidence h below 1), as on a look-alike that has
@@ -184,6 +184,9 @@ class TrackerParams:
         frame as it was unless one of its candidates becomes the estimate, so a search that finds
         nothing changes nothing later (without it, its draws and its candidates in the resampling
         moved every later frame).
+        'negative_after_recognised_quiet_strict' (round 40): as '..._quiet', but the quiet
+        search's find is kept only if its eps_pos is under ``update_error_threshold`` (the
+        finds after blur have eps_pos 0.004-0.09; the take that lost Car1 in round 39, 0.23).
     generative_weight : float
         A local-patch generative term in the confidence (*ours*, after SCM's generative
         model; 0 = off, the paper): log h gains ``generative_weight * log(similarity)``,
@@ -257,7 +260,8 @@ class TrackerParams:
     redetect_factor: float = bounded(4.0, 1, 100)
     redetect_accept: float = bounded(0.3, 0, 1, low_open=True)
     redetect_trigger: Literal["no_positive", "negative", "negative_after_recognised",
-                              "negative_after_recognised_quiet"] = "no_positive"
+                              "negative_after_recognised_quiet",
+                              "negative_after_recognised_quiet_strict"] = "no_positive"
 
     # -- generative term (ours, after SCM; nrmlc.tracker.generative) ----------------------
     generative_weight: float = bounded(10.0, 0, 1000)

@@ -37,8 +37,19 @@ def needs_search(params, best_error_positive: float, best_error_negative: float,
 
 def quiet_search(params, best_error_positive: float) -> bool:
     """Whether this frame's search (:func:`needs_search` said it runs) is one only the quiet
-    trigger runs: it then draws from its own generator and is undone unless it finds the estimate."""
-    return params.redetect_trigger == "negative_after_recognised_quiet" and best_error_positive < REDETECT_TRIGGER
+    trigger runs: it then draws from its own generator and is undone unless it finds the estimate
+    (under '..._quiet_strict', a find whose eps_pos is under ``update_error_threshold``)."""
+    return (params.redetect_trigger.startswith("negative_after_recognised_quiet")
+            and best_error_positive < REDETECT_TRIGGER)
+
+
+def quiet_find_kept(params, found_error_positive: float) -> bool:
+    """Whether a quiet search's find (a search candidate that would be the estimate) is kept:
+    always under '..._quiet'; under '..._quiet_strict' only if it is recognised as well as a
+    result that joins the positives (eps_pos < ``update_error_threshold``)."""
+    if params.redetect_trigger == "negative_after_recognised_quiet_strict":
+        return found_error_positive < params.update_error_threshold
+    return True
 
 
 def search(tracker, frame: np.ndarray, states: np.ndarray, coding, rng=None) -> tuple:
