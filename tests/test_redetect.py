@@ -130,3 +130,20 @@ def test_redetection_is_bit_identical_with_one_or_two_threads():
     assert [o[0] for o in outputs] == ["1", "2"]
     assert int(outputs[0][1]) > 0  # the search ran
     assert outputs[0][2] == outputs[1][2]
+
+
+def test_the_whole_frame_search_joins_only_after_the_target_went_unrecognised():
+    frames, truth = jump_scene(jump_frame=JUMP_FRAME)
+    params = TrackerParams(n_particles=200, redetect_count=150, redetect_global=40, redetect_global_after=0)
+    tracker = NRMLCTracker(seed=1, params=params)
+    tracker.init(frames[0], truth[0])
+    for frame in frames[1:JUMP_FRAME + 1]:
+        tracker.update(frame)
+    assert tracker.last.redetect_searched
+    # redetect_global_after = 0: the search of the jump frame carries the whole-frame candidates.
+    assert len(tracker.last_coding) == 200 + 150 + 40
+    later = NRMLCTracker(seed=1, params=params.replace(redetect_global_after=1000))
+    later.init(frames[0], truth[0])
+    for frame in frames[1:JUMP_FRAME + 1]:
+        later.update(frame)
+    assert later.last.redetect_searched and len(later.last_coding) == 200 + 150

@@ -187,6 +187,12 @@ class TrackerParams:
         'negative_after_recognised_quiet_strict' (round 40): as '..._quiet', but the quiet
         search's find is kept only if its eps_pos is under ``update_error_threshold`` (the
         finds after blur have eps_pos 0.004-0.09; the take that lost Car1 in round 39, 0.23).
+    redetect_global, redetect_global_after, redetect_global_accept
+        A search of the whole frame (*ours*, round 35, screened again in round 42; 0 = off): on a
+        frame that runs the search once the target has not been recognised (eps_pos* <
+        ``redetect_accept``) for ``redetect_global_after`` frames, ``redetect_global`` more
+        candidates are centred uniformly over the frame, at the shape of the last recognised
+        estimate; one counts only if its eps_pos < ``redetect_global_accept``.
     generative_weight : float
         A local-patch generative term in the confidence (*ours*, after SCM's generative
         model; 0 = off, the paper): log h gains ``generative_weight * log(similarity)``,
@@ -262,6 +268,9 @@ class TrackerParams:
     redetect_trigger: Literal["no_positive", "negative", "negative_after_recognised",
                               "negative_after_recognised_quiet",
                               "negative_after_recognised_quiet_strict"] = "no_positive"
+    redetect_global: int = bounded(0, 0, MAX_PARTICLES)
+    redetect_global_after: int = bounded(10, 0)
+    redetect_global_accept: float = bounded(0.15, 0, 1, low_open=True)
 
     # -- generative term (ours, after SCM; nrmlc.tracker.generative) ----------------------
     generative_weight: float = bounded(10.0, 0, 1000)
@@ -322,7 +331,7 @@ class TrackerParams:
     def memory_terms(self) -> dict[str, float]:
         """Bytes the largest per-frame arrays take, by the parameters that size them (an estimate
         with the copies a frame makes; the frame itself and the interpreter come on top)."""
-        candidates = self.n_particles + self.redetect_count
+        candidates = self.n_particles + self.redetect_count + self.redetect_global
         vector = self.patch_size**2
         templates = self.max_positive + self.n_negative
         local = ((self.patch_size - LOCAL_SIZE) // self.generative_step + 1) ** 2
@@ -438,7 +447,8 @@ SECTIONS: dict[str, tuple[str, ...]] = {
     "confidence": ("alpha", "confidence"),
     "updates": ("update_interval", "max_positive", "update_error_threshold", "occlusion_detection",
                 "occlusion_max_negative", "coefficient_tolerance"),
-    "redetection": ("redetect_count", "redetect_factor", "redetect_accept", "redetect_trigger"),
+    "redetection": ("redetect_count", "redetect_factor", "redetect_accept", "redetect_trigger",
+                    "redetect_global", "redetect_global_after", "redetect_global_accept"),
     "generative": ("generative_weight", "generative_candidates", "generative_neighbours", "generative_lam",
                    "generative_interval", "generative_step"),
 }

@@ -74,7 +74,22 @@ def search(tracker, frame: np.ndarray, states: np.ndarray, coding, rng=None) -> 
     """
     p = tracker.params
     extra = tracker.diffuse(np.tile(tracker.state, (p.redetect_count, 1)), p.redetect_factor, rng)
+    accept = np.full(len(extra), p.redetect_accept)
+    if p.redetect_global > 0 and tracker.frames_unrecognised >= p.redetect_global_after:
+        extra = np.vstack([extra, global_states(tracker, p.redetect_global, rng)])
+        accept = np.concatenate([accept, np.full(p.redetect_global, p.redetect_global_accept)])
     extra_coding = tracker.encode(tracker.patches(frame, extra))
     extra_coding = dataclasses.replace(extra_coding, log_confidence=np.where(
-        extra_coding.error_positive < p.redetect_accept, extra_coding.log_confidence, -np.inf))
+        extra_coding.error_positive < accept, extra_coding.log_confidence, -np.inf))
     return np.vstack([states, extra]), coding.joined(extra_coding)
+
+
+def global_states(tracker, n: int, rng=None) -> np.ndarray:
+    """(n, 6) states centred uniformly over the frame at the last recognised estimate's shape,
+    diffused by the motion model (``redetect_global``); ``rng`` as in :func:`search`."""
+    rng = tracker.rng if rng is None else rng
+    height, width = tracker.frame_shape
+    states = np.tile(tracker.recognised_state, (n, 1))
+    states[:, 0] = rng.uniform(0.0, width - 1.0, n)
+    states[:, 1] = rng.uniform(0.0, height - 1.0, n)
+    return tracker.diffuse(states, rng=rng)
