@@ -13,11 +13,17 @@ on half A, half B and the synthetic suite, and the adoption rule's verdict
 version V (a variant that adds a switch changes the code version, but not the default's boxes):
 the baseline's synthetic-suite runs are first computed at this version and must equal V's bit
 for bit, and V's real-target runs must all be in the cache; otherwise the screen stops.
+
+``--pool A.json,B.json`` runs nothing: it joins screens written by ``--json`` at disjoint seeds
+(the same baseline, variants and targets, e.g. a round's screen and its check, each maybe on a
+branch's code version) and gives the paired differences and the verdict over all their seeds.
 """
 from __future__ import annotations
 
 import argparse
+import json
 import sys
+from pathlib import Path
 
 import numpy as np
 
@@ -84,6 +90,52 @@ def baseline_at_version(cache: RunCache, specs: list, version: str, jobs) -> lis
     return other.run(specs, jobs=jobs)
 
 
+def pool_screens(documents: list[dict], sources: list[str]) -> dict:
+    """Screens (as ``--json`` writes them) at disjoint seeds joined into one, the verdicts
+    recomputed over all seeds. ``sources`` name the documents in errors.
+
+    Raises
+    ------
+    NrmlcError
+        When the screens share a seed, or differ in baseline, variants, groups or targets.
+    """
+    first, seen = documents[0], {}
+    for source, document in zip(sources, documents):
+        for seed in document["seeds"]:
+            if seed in seen:
+                raise NrmlcError(f"--pool: seed {seed} is in both {seen[seed]} and {source}")
+            seen[seed] = source
+        for key, what in (("baseline", "baseline"), ("groups", "targets")):
+            if document[key] != first[key]:
+                raise NrmlcError(f"--pool: {source} has another {what} than {sources[0]}")
+        if [v["name"] for v in document["variants"]] != [v["name"] for v in first["variants"]]:
+            raise NrmlcError(f"--pool: {source} screens other variants than {sources[0]}")
+
+    def joined(key, where=lambda document: document):
+        return {name: [x for document in documents for x in where(document)[key][name]]
+                for name in where(first)[key]}
+
+    seeds = [seed for document in documents for seed in document["seeds"]]
+    groups = first["groups"]
+    halves = {label: names for label, names in groups.items() if label in ("A", "B")}
+    baseline_runs = joined("baseline_per_seed")
+    rows = []
+    for index, variant in enumerate(first["variants"]):
+        def of_variant(document, index=index):
+            return document["variants"][index]
+        runs, scales = joined("per_seed", of_variant), joined("scales", of_variant)
+        differences = differences_by_group(runs, baseline_runs, groups, seeds)
+        verdict = adopted(differences)
+        rows.append({"name": variant["name"], "params": variant["params"], "differences": differences,
+                     "adopted": verdict[0], "why": verdict[1], "per_seed": runs, "scales": scales,
+                     "collapsed": {label: collapsed(scales, names) for label, names in halves.items()}})
+    base_scales = joined("baseline_scales")
+    means = {label: float(np.mean([np.mean(baseline_runs[n]) for n in names])) for label, names in groups.items()}
+    return {"baseline": first["baseline"], "baseline_per_seed": baseline_runs, "baseline_scales": base_scales,
+            "baseline_collapsed": {label: collapsed(base_scales, names) for label, names in halves.items()},
+            "seeds": seeds, "groups": groups, "baseline_means": means, "variants": rows, "pooled_from": sources}
+
+
 def format_screen(rows: list[dict]) -> str:
     """Markdown: one row per variant, the paired differences on A, B, the synthetic suite, the verdict."""
     lines = ["| variant | half A | half B | synthetic suite | all real | collapsed (A, B) | verdict |",
@@ -121,7 +173,11 @@ def main(argv=None) -> int:
     parser.add_argument("--cache", default=str(DEFAULT_CACHE))
     parser.add_argument("--json", default=None)
     parser.add_argument("--markdown", default=None)
+    parser.add_argument("--pool", default=None, metavar="A.json,B.json",
+                        help="run nothing: join these screens' JSONs (disjoint seeds) and judge over all seeds")
     args = parser.parse_args(argv)
+    if args.pool:
+        return _pool(args)
     try:
         seeds = parse_seeds(args.seeds)
         warn_few_seeds(args.seeds, seeds)
@@ -179,6 +235,25 @@ def main(argv=None) -> int:
         io.write_json(args.json, {"baseline": baseline.as_dict(), "baseline_per_seed": base_overlaps,
                                   "baseline_scales": base_scales, "baseline_collapsed": base_collapsed,
                                   "seeds": seeds, "groups": groups, "baseline_means": means, "variants": rows})
+    return 0
+
+
+def _pool(args) -> int:
+    """``--pool``: print (and write) the pooled screen."""
+    sources = [part for part in args.pool.split(",") if part]
+    try:
+        documents = [json.loads(Path(source).read_text()) for source in sources]
+        pooled = pool_screens(documents, sources)
+    except (NrmlcError, OSError, ValueError, KeyError) as error:
+        print(f"error: {error}", file=sys.stderr)
+        return 2
+    print(f"pooled {len(sources)} screens: seeds {', '.join(map(str, pooled['seeds']))}")
+    table = format_screen(pooled["variants"])
+    print(table)
+    if args.markdown:
+        io.write_text(args.markdown, table + "\n")
+    if args.json:
+        io.write_json(args.json, pooled)
     return 0
 
 

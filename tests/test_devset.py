@@ -246,3 +246,38 @@ def test_fewer_seeds_than_the_rule_needs_are_warned_in_one_line(capsys):
     assert line.count("\n") == 0 and "--seeds 3 is 1 seed(s) (3)" in line and "at least 3" in line
     devset.warn_few_seeds("0-2", (0, 1, 2))
     assert capsys.readouterr().err == ""
+
+
+def test_screen_pool_joins_disjoint_seeds_and_rejudges(tmp_path, capsys):
+    from experiments import screen
+
+    groups = {"A": ["a1", "a2"], "B": ["b1"], "synthetic suite": ["s1"]}
+
+    def document(seeds, shift):
+        base = {n: [0.5 + 0.01 * s for s in seeds] for n in ["a1", "a2", "b1", "s1"]}
+        variant = {n: [x + shift for x in runs] for n, runs in base.items()}
+        scales = {n: [1.0] * len(seeds) for n in base}
+        return {"baseline": {"alpha": 25.0}, "baseline_per_seed": base, "baseline_scales": scales,
+                "seeds": seeds, "groups": groups,
+                "variants": [{"name": "v", "params": {"alpha": 3.0}, "per_seed": variant,
+                              "scales": {n: [0.5] * len(seeds) for n in base}}]}
+
+    first, second = tmp_path / "first.json", tmp_path / "second.json"
+    first.write_text(json.dumps(document([0, 1], 0.02)))
+    second.write_text(json.dumps(document([2, 3], -0.01)))
+    out = tmp_path / "pooled.json"
+    assert screen.main(["--pool", f"{first},{second}", "--json", str(out)]) == 0
+    pooled = json.loads(out.read_text())
+    assert pooled["seeds"] == [0, 1, 2, 3]
+    a = pooled["variants"][0]["differences"]["A"]
+    assert a["per_seed"] == pytest.approx([0.02, 0.02, -0.01, -0.01]) and a["mean"] == pytest.approx(0.005)
+    assert a["standard_error"] == pytest.approx(np.std([0.02, 0.02, -0.01, -0.01], ddof=1) / 2)
+    assert pooled["variants"][0]["collapsed"] == {"A": ["a1", "a2"], "B": ["b1"]}
+    assert pooled["baseline_collapsed"] == {"A": [], "B": []}
+    assert "| v |" in capsys.readouterr().out
+    # a seed in both screens is refused, naming both files
+    assert screen.main(["--pool", f"{first},{first}"]) == 2
+    message = capsys.readouterr().err.strip()
+    assert message.count("\n") == 0 and "seed 0" in message and "first.json" in message
+    assert screen.main(["--pool", f"{first},{tmp_path / 'missing.json'}"]) == 2
+    assert "missing.json" in capsys.readouterr().err
