@@ -25,7 +25,7 @@ def _unit_patch(rng, size=32):
 
 def test_local_patches_are_scms_grid_of_unit_6x6_patches():
     patch = np.arange(32 * 32, dtype=np.float32) + 1
-    local = local_patches(patch[None] / np.linalg.norm(patch), 32)
+    local = local_patches(patch[None] / np.linalg.norm(patch), (32, 32))
     assert local.shape == (1, 14 * 14, 36)
     np.testing.assert_allclose(np.linalg.norm(local, axis=2), 1.0, rtol=1e-6)
     # The second patch starts 2 px to the right, the 15th 2 rows down.
@@ -37,18 +37,18 @@ def test_local_patches_are_scms_grid_of_unit_6x6_patches():
 
 def test_a_coarser_grid_cuts_fewer_patches_but_keeps_the_dense_grids_atoms():
     patch = _unit_patch(np.random.default_rng(6))
-    dense, coarse = local_patches(patch[None], 32), local_patches(patch[None], 32, step=4)
+    dense, coarse = local_patches(patch[None], (32, 32)), local_patches(patch[None], (32, 32), step=4)
     assert coarse.shape == (1, 7 * 7, 36)
     # Every 4 px is every other patch of the 2-px grid, in both directions.
     np.testing.assert_array_equal(coarse[0], dense[0].reshape(14, 14, 36)[::2, ::2].reshape(49, 36))
-    model = LocalHistogramModel(np.random.default_rng(7), patch, 32, 5, 1.0, step=4)
-    np.testing.assert_array_equal(model.atoms, LocalHistogramModel(np.random.default_rng(7), patch, 32, 5, 1.0).atoms)
+    model = LocalHistogramModel(np.random.default_rng(7), patch, (32, 32), 5, 1.0, step=4)
+    np.testing.assert_array_equal(model.atoms, LocalHistogramModel(np.random.default_rng(7), patch, (32, 32), 5, 1.0).atoms)
     assert model.atoms.shape == (N_ATOMS, 36) and model.histogram.shape == (49, N_ATOMS)
     assert model.similarity(patch[None])["similarity"][0] == pytest.approx(1.0)
 
 
 def test_kmeans_is_seeded_and_gives_unit_atoms():
-    points = local_patches(_unit_patch(np.random.default_rng(0))[None], 32)[0]
+    points = local_patches(_unit_patch(np.random.default_rng(0))[None], (32, 32))[0]
     atoms = kmeans_atoms(np.random.default_rng(1), points, N_ATOMS)
     assert atoms.shape == (N_ATOMS, 36)
     np.testing.assert_allclose(np.linalg.norm(atoms, axis=1), 1.0)
@@ -59,7 +59,7 @@ def test_kmeans_is_seeded_and_gives_unit_atoms():
 def test_occluded_patches_drop_out_of_both_histograms_and_another_target_scores_lower():
     rng = np.random.default_rng(2)
     target = _unit_patch(rng)
-    model = LocalHistogramModel(np.random.default_rng(3), target, 32, 5, 1.0)
+    model = LocalHistogramModel(np.random.default_rng(3), target, (32, 32), 5, 1.0)
     occluded = target.reshape(32, 32).copy()
     # A high-contrast stripe pattern over the left half: far from every atom of the target.
     occluded[:, :16] = np.where(np.indices((32, 16)).sum(axis=0) % 2, 0.0, 1.0)
@@ -78,7 +78,7 @@ def test_occluded_patches_drop_out_of_both_histograms_and_another_target_scores_
 
 def test_the_template_histogram_stays_anchored_to_the_first_frame():
     rng = np.random.default_rng(4)
-    model = LocalHistogramModel(np.random.default_rng(5), _unit_patch(rng), 32, 5, 1.0)
+    model = LocalHistogramModel(np.random.default_rng(5), _unit_patch(rng), (32, 32), 5, 1.0)
     first = model.first_histogram.copy()
     result = model.similarity(_unit_patch(rng)[None])
     neighbours, codes = result["neighbours"][0], result["codes"][0]

@@ -86,16 +86,17 @@ def test_matches_reference_including_outside_the_frame(states):
     np.testing.assert_allclose(warp_patches(frame, affines), warp_patches_reference(frame, affines), atol=2e-6)
 
 
-def _both_paths(frame, affines, patch_size=32):
+def _both_paths(frame, affines, patch_size=32, grid=None):
     """The kernel's output with the axis-aligned fast path allowed and forbidden."""
     from nrmlc.kernels.warp import _warp_patches
 
+    n_rows, n_cols = (patch_size, patch_size) if grid is None else grid
     out = []
     for allow in (True, False):
         n = affines.shape[0]
-        patches = np.empty((n, patch_size * patch_size), np.float32)
-        _warp_patches(frame, affines, patch_size, allow, np.empty((n, patch_size), np.uint64),
-                      np.empty((n, patch_size)), np.empty((n, patch_size)), patches)
+        patches = np.empty((n, n_rows * n_cols), np.float32)
+        _warp_patches(frame, affines, float(patch_size), n_rows, n_cols, allow, np.empty((n, n_cols), np.uint64),
+                      np.empty((n, n_cols)), np.empty((n, n_cols)), patches)
         out.append(patches)
     return out
 
@@ -116,6 +117,39 @@ def test_axis_aligned_fast_path_matches_reference_and_general_path(states, heigh
     # Same per-sample arithmetic; only the summation order of the norm differs.
     np.testing.assert_allclose(fast, general, rtol=3e-7, atol=1e-9)
     np.testing.assert_array_equal(warp_patches(frame, affines), fast)
+
+
+@settings(max_examples=40, deadline=None)
+@given(st.lists(st.tuples(st.floats(-50, 150), st.floats(-50, 150), st.floats(0.05, 4), st.floats(-1, 1),
+                          st.floats(0.2, 5)), min_size=1, max_size=6),
+       st.integers(2, 70), st.integers(2, 70))
+def test_rectangular_grid_matches_reference_on_both_paths(states, n_rows, n_cols):
+    frame = _frame()
+    states = np.array([(cx, cy, s, r, a, 0.0) for cx, cy, s, r, a in states])
+    affines = np.ascontiguousarray(state_to_affine(states))
+    fast, general = _both_paths(frame, affines, grid=(n_rows, n_cols))
+    reference = warp_patches_reference(frame, affines, grid=(n_rows, n_cols))
+    np.testing.assert_allclose(fast, reference, atol=2e-6)
+    np.testing.assert_allclose(general, reference, atol=2e-6)
+    np.testing.assert_array_equal(warp_patches(frame, affines, grid=(n_rows, n_cols)), fast)
+
+
+def test_rectangular_grid_tiles_the_same_box():
+    # Any grid samples the cell centres of the same box: on a frame linear in x and y
+    # (where bilinear sampling is exact) the corner samples sit half a cell inside it.
+    yy, xx = np.mgrid[0:80, 0:100].astype(np.float32)
+    frame = np.ascontiguousarray(1.0 + xx + 2.0 * yy)
+    box = np.array([[20.0, 10.0, 30.0, 60.0]])
+    affines = np.ascontiguousarray(state_to_affine(box_to_state(box)))
+    (scale_x, _, centre_x), (_, scale_y, centre_y) = affines[0]
+    for n_rows, n_cols in [(32, 32), (64, 16), (16, 64), (45, 23)]:
+        patch = warp_patches(frame, affines, grid=(n_rows, n_cols))[0].astype(np.float64)
+        # mean of a linear function over a symmetric grid = its value at the box centre
+        raw = patch * (1.0 + centre_x + 2.0 * centre_y) / patch.mean()
+        half_x, half_y = 16.0 - 16.0 / n_cols, 16.0 - 16.0 / n_rows
+        first = 1.0 + centre_x - scale_x * half_x + 2.0 * (centre_y - scale_y * half_y)
+        last = 1.0 + centre_x + scale_x * half_x + 2.0 * (centre_y + scale_y * half_y)
+        np.testing.assert_allclose([raw[0], raw[-1]], [first, last], rtol=1e-5)
 
 
 def test_wholly_outside_target_replicates_the_border():

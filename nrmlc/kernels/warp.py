@@ -29,12 +29,15 @@ from nrmlc.kernels.checks import check_array, check_finite, check_int
 
 
 @njit(**PARALLEL_FLAGS)
-def _warp_patches(frame, affines, patch_size, allow_fast_path, column_index, column_fraction, row_values,
-                  patches):
+def _warp_patches(frame, affines, patch_size, n_rows, n_cols, allow_fast_path, column_index, column_fraction,
+                  row_values, patches):
     """Fill ``patches``; the other arrays are per-particle work buffers.
 
-    ``column_index`` (n, P) uint64, ``column_fraction`` (n, P) float64 and
-    ``row_values`` (n, P) float64 are scratch space, one row per particle.
+    The ``n_rows x n_cols`` samples are the centres of equal cells tiling the
+    ``P x P`` template square (for ``n_rows = n_cols = P`` exactly the integer
+    template grid). ``column_index`` (n, n_cols) uint64, ``column_fraction``
+    (n, n_cols) float64 and ``row_values`` (n, n_cols) float64 are scratch
+    space, one row per particle.
     ``allow_fast_path=False`` forces the general path (for tests).
 
     Fast path (``A`` diagonal, i.e. rotation = skew = 0, the tracker's usual
@@ -49,8 +52,11 @@ def _warp_patches(frame, affines, patch_size, allow_fast_path, column_index, col
     """
     height, width = frame.shape
     pixels = frame.ravel()
-    half = (patch_size - 1) / 2.0
-    flat = 1.0 / patch_size
+    half = patch_size / 2.0
+    step_x = patch_size / n_cols
+    step_y = patch_size / n_rows
+    n_values = n_rows * n_cols
+    flat = 1.0 / math.sqrt(n_values)
     last_x = max(width - 2, 0)
     last_y = max(height - 2, 0)
     one = np.uint64(1)
@@ -67,18 +73,18 @@ def _warp_patches(frame, affines, patch_size, allow_fast_path, column_index, col
             x0s = column_index[particle]
             fxs = column_fraction[particle]
             values = row_values[particle]
-            for col in range(patch_size):
-                x = min(max(a00 * (col - half) + centre_x, 0.0), width - 1.0)
+            for col in range(n_cols):
+                x = min(max(a00 * ((col + 0.5) * step_x - half) + centre_x, 0.0), width - 1.0)
                 x0 = min(int(x), last_x)
                 x0s[col] = np.uint64(x0)
                 fxs[col] = x - x0
-            for row in range(patch_size):
-                y = min(max(a11 * (row - half) + centre_y, 0.0), height - 1.0)
+            for row in range(n_rows):
+                y = min(max(a11 * ((row + 0.5) * step_y - half) + centre_y, 0.0), height - 1.0)
                 y0 = min(int(y), last_y)
                 fy = y - y0
                 top_row = np.uint64(y0 * width)
                 bottom_row = top_row + np.uint64(width)
-                for col in range(patch_size):
+                for col in range(n_cols):
                     x0 = x0s[col]
                     fx = fxs[col]
                     top_left = pixels[top_row + x0]
@@ -87,17 +93,17 @@ def _warp_patches(frame, affines, patch_size, allow_fast_path, column_index, col
                     bottom = bottom_left + fx * (pixels[bottom_row + x0 + one] - bottom_left)
                     values[col] = top + fy * (bottom - top)
                 row_sq = 0.0
-                base = row * patch_size
-                for col in range(patch_size):
+                base = row * n_cols
+                for col in range(n_cols):
                     value = values[col]
                     row_sq += value * value
                     out[base + col] = value
                 sum_sq += row_sq
         else:
-            for row in range(patch_size):
-                v = row - half
-                for col in range(patch_size):
-                    u = col - half
+            for row in range(n_rows):
+                v = (row + 0.5) * step_y - half
+                for col in range(n_cols):
+                    u = (col + 0.5) * step_x - half
                     x = min(max(a00 * u + a01 * v + centre_x, 0.0), width - 1.0)
                     y = min(max(a10 * u + a11 * v + centre_y, 0.0), height - 1.0)
                     # The top-left neighbour stays inside the frame so that x1 = x0 + 1
@@ -111,19 +117,20 @@ def _warp_patches(frame, affines, patch_size, allow_fast_path, column_index, col
                     top = frame[y0, x0] + fx * (frame[y0, x1] - frame[y0, x0])
                     bottom = frame[y1, x0] + fx * (frame[y1, x1] - frame[y1, x0])
                     value = top + fy * (bottom - top)
-                    out[row * patch_size + col] = value
+                    out[row * n_cols + col] = value
                     sum_sq += value * value
         norm = math.sqrt(sum_sq)
         if norm > 1e-12:
             inv = 1.0 / norm
-            for k in range(patch_size * patch_size):
+            for k in range(n_values):
                 out[k] = out[k] * inv
         else:
-            for k in range(patch_size * patch_size):
+            for k in range(n_values):
                 out[k] = flat
 
 
-def warp_patches(frame: np.ndarray, affines: np.ndarray, patch_size: int = PATCH_SIZE) -> np.ndarray:
+def warp_patches(frame: np.ndarray, affines: np.ndarray, patch_size: int = PATCH_SIZE,
+                 grid: tuple[int, int] | None = None) -> np.ndarray:
     """Warp one frame into unit-norm patch vectors, one per particle.
 
     Parameters
@@ -133,11 +140,13 @@ def warp_patches(frame: np.ndarray, affines: np.ndarray, patch_size: int = PATCH
     affines : (n_particles, 2, 3) float64, C-contiguous
         Warps ``[A | c]`` from :func:`nrmlc.geometry.state_to_affine`.
     patch_size : int
-        Side P of the template grid.
+        Side P of the template square the warps map from.
+    grid : (n_rows, n_cols), optional
+        How many samples across the template square's height and width; default ``(P, P)``.
 
     Returns
     -------
-    patches : (n_particles, patch_size**2) float32
+    patches : (n_particles, n_rows * n_cols) float32
         Row-major patches, each of unit l2 norm.
     """
     check_array("frame", frame, np.float32, 2)
@@ -149,11 +158,15 @@ def warp_patches(frame: np.ndarray, affines: np.ndarray, patch_size: int = PATCH
     check_finite("affines", affines)
     check_finite("frame", frame)
     patch_size = check_int("patch_size", patch_size, 2)
+    n_rows, n_cols = (patch_size, patch_size) if grid is None else grid
+    n_rows = check_int("grid[0]", n_rows, 2)
+    n_cols = check_int("grid[1]", n_cols, 2)
     n_particles = affines.shape[0]
-    patches = np.empty((n_particles, patch_size**2), dtype=np.float32)
+    patches = np.empty((n_particles, n_rows * n_cols), dtype=np.float32)
     # Per-particle work buffers, allocated once outside the parallel loop.
-    column_index = np.empty((n_particles, patch_size), dtype=np.uint64)
-    column_fraction = np.empty((n_particles, patch_size), dtype=np.float64)
-    row_values = np.empty((n_particles, patch_size), dtype=np.float64)
-    _warp_patches(frame, affines, patch_size, True, column_index, column_fraction, row_values, patches)
+    column_index = np.empty((n_particles, n_cols), dtype=np.uint64)
+    column_fraction = np.empty((n_particles, n_cols), dtype=np.float64)
+    row_values = np.empty((n_particles, n_cols), dtype=np.float64)
+    _warp_patches(frame, affines, float(patch_size), n_rows, n_cols, True, column_index, column_fraction, row_values,
+                  patches)
     return patches

@@ -63,14 +63,17 @@ def make_problem(seed: int, n_candidates: int = 40, n_templates: int = 60, dim: 
 # ===========================================================================
 
 
-def warp_patches_reference(frame, affines, patch_size=32):
-    """Bilinear sampling with border replication, then unit-norm rows (float64)."""
+def warp_patches_reference(frame, affines, patch_size=32, grid=None):
+    """Bilinear sampling with border replication, then unit-norm rows (float64); ``grid``
+    (n_rows, n_cols) samples at the centres of equal cells tiling the P x P template square."""
     frame = np.asarray(frame, dtype=np.float64)
     height, width = frame.shape
-    centre = (patch_size - 1) / 2.0
-    rows, cols = np.mgrid[0:patch_size, 0:patch_size].astype(np.float64)
-    grid = np.stack([cols.ravel() - centre, rows.ravel() - centre])  # (2, P*P)
-    out = np.empty((len(affines), patch_size * patch_size))
+    n_rows, n_cols = (patch_size, patch_size) if grid is None else grid
+    v = (np.arange(n_rows) + 0.5) * patch_size / n_rows - patch_size / 2.0
+    u = (np.arange(n_cols) + 0.5) * patch_size / n_cols - patch_size / 2.0
+    rows, cols = np.meshgrid(v, u, indexing="ij")
+    grid = np.stack([cols.ravel(), rows.ravel()])  # (2, n_rows * n_cols)
+    out = np.empty((len(affines), n_rows * n_cols))
     for k, matrix in enumerate(affines):
         x, y = matrix[:, :2] @ grid + matrix[:, 2:]
         x = np.clip(x, 0, width - 1)
@@ -83,7 +86,7 @@ def warp_patches_reference(frame, affines, patch_size=32):
         values = (frame[y0, x0] * (1 - fx) * (1 - fy) + frame[y0, x1] * fx * (1 - fy)
                   + frame[y1, x0] * (1 - fx) * fy + frame[y1, x1] * fx * fy)
         norm = np.linalg.norm(values)
-        out[k] = values / norm if norm > 1e-12 else 1.0 / patch_size
+        out[k] = values / norm if norm > 1e-12 else 1.0 / np.sqrt(n_rows * n_cols)
     return out
 
 

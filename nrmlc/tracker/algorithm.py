@@ -42,7 +42,7 @@ from nrmlc.kernels.warp import warp_patches
 from nrmlc.tracker.generative import LocalHistogramModel
 from nrmlc.tracker.params import TrackerParams
 from nrmlc.tracker.redetect import REDETECT_TRIGGER, needs_search, search
-from nrmlc.tracker.templates import (SCM_PUSH_INIT, SCM_PUSH_UPDATE, negative_states, positive_states,
+from nrmlc.tracker.templates import (SCM_PUSH_INIT, SCM_PUSH_UPDATE, negative_states, positive_states, sampling_grid,
                                      scm_negative_states, scm_positive_states)
 
 @dataclass(frozen=True)
@@ -239,7 +239,8 @@ class NRMLCTracker:
     def patches(self, frame: np.ndarray, states: np.ndarray) -> np.ndarray:
         """The patch vectors the tracker codes for ``states`` (n, 6) in ``frame`` (a frame
         as ``update`` sees it): (n, patch_size**2) float32, unit rows."""
-        return warp_patches(frame, np.ascontiguousarray(state_to_affine(states)), self.params.patch_size)
+        return warp_patches(frame, np.ascontiguousarray(state_to_affine(states)), self.params.patch_size,
+                            self.patch_grid)
 
     def _set_templates(self, positives: np.ndarray, negatives: np.ndarray,
                        kept_positives: np.ndarray | None = None) -> None:
@@ -287,6 +288,7 @@ class NRMLCTracker:
         self.rng = np.random.default_rng(self.seed)
         self.frame_shape = frame.shape
         self.state = box_to_state(box, p.patch_size)
+        self.patch_grid = sampling_grid(p.patch_size, float(self.state[4]), p.patch_grid)
         self.initial_box = box
         self.first_frame_mean = float(frame.mean(dtype=np.float64))
         self.particles = None
@@ -296,7 +298,7 @@ class NRMLCTracker:
         self.generative = None
         if p.generative_weight > 0:
             self.generative = LocalHistogramModel(self.rng, self.patches(frame, self.state[None, :])[0],
-                                                  p.patch_size, p.generative_neighbours, p.generative_lam,
+                                                  self.patch_grid, p.generative_neighbours, p.generative_lam,
                                                   p.generative_step)
         self.frame_index = 0
         self.last = None

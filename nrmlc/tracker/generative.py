@@ -45,17 +45,17 @@ KMEANS_ITERATIONS = 10
 
 
 @functools.lru_cache(maxsize=8)
-def _local_index(patch_size: int, step: int) -> np.ndarray:
+def _local_index(patch_grid: tuple[int, int], step: int) -> np.ndarray:
     """(n_local, LOCAL_SIZE**2) positions in a patch vector of each local patch's pixels."""
-    grid = np.arange(patch_size * patch_size).reshape(patch_size, patch_size)
+    grid = np.arange(patch_grid[0] * patch_grid[1]).reshape(patch_grid)
     windows = sliding_window_view(grid, (LOCAL_SIZE, LOCAL_SIZE))[::step, ::step]
     return windows.reshape(-1, LOCAL_SIZE * LOCAL_SIZE)
 
 
-def local_patches(patches: np.ndarray, patch_size: int, step: int = LOCAL_STEP) -> np.ndarray:
-    """(n, patch_size**2) patch vectors -> (n, n_local, LOCAL_SIZE**2) float32 unit rows,
-    the local patches every ``step`` px."""
-    local = np.take(np.asarray(patches, dtype=np.float32), _local_index(patch_size, step), axis=1)
+def local_patches(patches: np.ndarray, patch_grid: tuple[int, int], step: int = LOCAL_STEP) -> np.ndarray:
+    """(n, n_rows * n_cols) patch vectors on a ``patch_grid = (n_rows, n_cols)`` grid ->
+    (n, n_local, LOCAL_SIZE**2) float32 unit rows, the local patches every ``step`` px."""
+    local = np.take(np.asarray(patches, dtype=np.float32), _local_index(tuple(patch_grid), step), axis=1)
     norms = np.sqrt(np.einsum("nld,nld->nl", local, local))[:, :, None]
     local /= np.maximum(norms, np.float32(1e-12))
     return local
@@ -80,16 +80,16 @@ def kmeans_atoms(rng: np.random.Generator, points: np.ndarray, n_atoms: int) -> 
 class LocalHistogramModel:
     """SCM's generative model on NRMLC's coder (see the module docstring)."""
 
-    def __init__(self, rng: np.random.Generator, target_patch: np.ndarray, patch_size: int,
+    def __init__(self, rng: np.random.Generator, target_patch: np.ndarray, patch_grid: tuple[int, int],
                  neighbours: int, lam: float, step: int = LOCAL_STEP) -> None:
-        self.patch_size = patch_size
+        self.patch_grid = tuple(patch_grid)
         self.step = step
         # The atoms always come from SCM's dense grid, whatever grid the candidates are cut on.
-        self.atoms = kmeans_atoms(rng, local_patches(target_patch[None, :], patch_size)[0], N_ATOMS)
+        self.atoms = kmeans_atoms(rng, local_patches(target_patch[None, :], self.patch_grid)[0], N_ATOMS)
         self.gram = np.ascontiguousarray(self.atoms @ self.atoms.T)
         self.neighbours = min(neighbours, len(self.atoms))
         self.lam = lam
-        indices, codes, _ = self._code(local_patches(target_patch[None, :], patch_size, step))
+        indices, codes, _ = self._code(local_patches(target_patch[None, :], self.patch_grid, step))
         self.first_histogram = self._dense(indices[0], np.abs(codes[0]))
         self.histogram = self.first_histogram.copy()
 
@@ -104,14 +104,14 @@ class LocalHistogramModel:
         return histogram
 
     def similarity(self, patches: np.ndarray) -> dict:
-        """SCM's similarity of each candidate patch (n, patch_size**2) to the template histogram.
+        """SCM's similarity of each candidate patch (n, n_rows * n_cols) to the template histogram.
 
         Returns
         -------
         dict with ``similarity (n,)``, ``occluded_share (n,)``, ``neighbours (n, n_local, k)``
         and ``codes (n, n_local, k)``.
         """
-        matched = match_local_histogram(local_patches(patches, self.patch_size, self.step), self.atoms, self.gram,
+        matched = match_local_histogram(local_patches(patches, self.patch_grid, self.step), self.atoms, self.gram,
                                         self.neighbours, self.lam, self.histogram, OCCLUSION_ERROR)
         n_occluded = matched["n_occluded"]
         return dict(similarity=matched["overlap"] + OCCLUDED_BONUS * n_occluded,

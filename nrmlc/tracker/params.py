@@ -127,6 +127,11 @@ class TrackerParams:
         exceeds this (for LEN(neg*)).
     patch_size : int
         Templates and candidates are patch_size x patch_size (paper: 32).
+    patch_grid : {'square', 'box_aspect'}
+        'square' samples every box on the ``P x P`` grid (the paper and its lineage);
+        'box_aspect' samples it on a grid of about ``P*P`` cells shaped like the first box
+        (rows / columns = its height / width, within 1/4..4), so that a tall target's patch
+        is not squeezed into a square (round 43, not adopted).
     template_sampling : {'scm', 'annulus'}
         Where template centres are drawn. 'scm' follows SCM's ``affineTrainG.m`` /
         ``updateDic.m`` (the lineage of the paper's template scheme): positives from
@@ -217,6 +222,7 @@ class TrackerParams:
     positive_sigma: float = bounded(1.0, 0, MAX_RADIUS)
     negative_push: float = bounded(0.25, 0, 2)
     patch_size: int = bounded(PATCH_SIZE, 4)
+    patch_grid: Literal["square", "box_aspect"] = "square"
     brightness: Literal["first_frame", "raw"] = "first_frame"
 
     # -- coding (Algorithm 1) -------------------------------------------------------------
@@ -298,6 +304,9 @@ class TrackerParams:
         if self.generative_weight > 0 and self.patch_size < LOCAL_SIZE:
             _fail("patch_size", f"must be >= {LOCAL_SIZE} (the local patches) when generative_weight > 0, "
                                 f"got {self.patch_size}")
+        if self.generative_weight > 0 and self.patch_grid == "box_aspect" and self.patch_size < 2 * LOCAL_SIZE:
+            _fail("patch_size", f"must be >= {2 * LOCAL_SIZE} (the local patches on the narrowest grid) when "
+                                f"patch_grid is 'box_aspect' and generative_weight > 0, got {self.patch_size}")
 
     def memory_terms(self) -> dict[str, float]:
         """Bytes the largest per-frame arrays take, by the parameters that size them (an estimate
@@ -413,7 +422,7 @@ PRESETS: dict[str, dict] = {
 SECTIONS: dict[str, tuple[str, ...]] = {
     "motion": ("n_particles", "motion_sigmas", "propagation", "translation_noise", "translation_floor"),
     "templates": ("n_positive", "n_negative", "template_sampling", "positive_radius", "negative_radius",
-                  "positive_sigma", "negative_push", "patch_size", "brightness"),
+                  "positive_sigma", "negative_push", "patch_size", "patch_grid", "brightness"),
     "coding": ("dictionary_sizes", "coding", "lam", "beta", "n_iterations"),
     "confidence": ("alpha", "confidence"),
     "updates": ("update_interval", "max_positive", "update_error_threshold", "occlusion_detection",

@@ -68,6 +68,18 @@ SCM_PUSH_INIT = 0.25
 SCM_PUSH_UPDATE = 0.2
 
 
+MAX_GRID_ASPECT = 4.0
+
+
+def sampling_grid(patch_size: int, aspect: float, mode: str) -> tuple[int, int]:
+    """(n_rows, n_cols) of the patch grid: ``(P, P)`` for 'square'; for 'box_aspect' about
+    ``P*P`` cells with n_rows / n_cols = ``aspect`` (height / width, clipped to 1/4..4)."""
+    if mode == "square":
+        return patch_size, patch_size
+    root = float(np.sqrt(np.clip(aspect, 1.0 / MAX_GRID_ASPECT, MAX_GRID_ASPECT)))
+    return max(2, int(round(patch_size * root))), max(2, int(round(patch_size / root)))
+
+
 def target_size(state: np.ndarray, patch_size: int) -> tuple[float, float]:
     """Width and height (image pixels) of the target's template grid, ignoring rotation,
     as SCM measures them (``sz * est(3)`` and ``sz * est(3) * p0``)."""
