@@ -297,3 +297,24 @@ def test_a_misspelt_parameter_gets_a_suggestion():
         TrackerParams().replace(n_particle=10)
     with pytest.raises(ParameterError, match=r"unknown parameter 'zzz'$"):
         parse_param_assignment("zzz=1")
+
+
+def test_box_aspect_grid_follows_the_first_box_and_tracks(sequence):
+    from nrmlc.tracker.templates import sampling_grid
+
+    assert sampling_grid(32, 1.0, "box_aspect") == (32, 32)
+    assert sampling_grid(32, 4.0, "box_aspect") == (64, 16)
+    assert sampling_grid(32, 9.0, "box_aspect") == (64, 16)  # clipped at 4
+    assert sampling_grid(32, 0.5, "box_aspect") == (23, 45)
+    assert sampling_grid(32, 3.0, "square") == (32, 32)
+    tracker = NRMLCTracker(seed=0, patch_grid="box_aspect", **FAST)
+    x, y, w, h = sequence.init_box
+    tall = np.array([x, y - h / 2, w, 2 * h])
+    tracker.init(sequence.frame(0), tall)
+    assert tracker.patch_grid == sampling_grid(32, 2 * h / w, "box_aspect") != (32, 32)
+    n_values = tracker.patch_grid[0] * tracker.patch_grid[1]
+    assert tracker.templates.shape[1] == n_values
+    for index in range(1, 6):
+        box = tracker.update(sequence.frame(index))
+        assert np.all(np.isfinite(box))
+    assert tracker.last_coding.patches.shape[1] == n_values
