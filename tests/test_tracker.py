@@ -297,3 +297,24 @@ def test_a_misspelt_parameter_gets_a_suggestion():
         TrackerParams().replace(n_particle=10)
     with pytest.raises(ParameterError, match=r"unknown parameter 'zzz'$"):
         parse_param_assignment("zzz=1")
+
+
+def test_motion_clearance_keeps_negatives_off_the_recent_path():
+    from nrmlc.tracker.templates import scm_negative_states
+
+    state = np.array([100.0, 100.0, 1.0, 0.0, 1.0, 0.0])  # a 32 x 32 box
+    rng = np.random.default_rng(0)
+    plain = scm_negative_states(np.random.default_rng(0), state, 400, 32, 0.25)
+    assert np.array_equal(plain, scm_negative_states(np.random.default_rng(0), state, 400, 32, 0.25, (0.0, 0.0)))
+    wide = scm_negative_states(rng, state, 400, 32, 0.25, (10.0, 3.0))
+    assert np.abs(wide[:, 0] - 100).min() >= 8 + 10 - 1e-9 and np.abs(wide[:, 1] - 100).min() >= 8 + 3 - 1e-9
+    assert np.abs(plain[:, 0] - 100).min() < 8 + 10
+
+
+def test_motion_clearance_is_the_displacement_since_the_last_refresh(sequence):
+    tracker = NRMLCTracker(seed=0, negative_clearance="motion", **FAST)
+    tracker.init(sequence.frame(0), sequence.init_box)
+    first = tracker.refreshed_at.copy()
+    for index in range(1, 5):  # the update at frame 4 (every 5th frame) refreshes the negatives
+        tracker.update(sequence.frame(index))
+    assert np.array_equal(tracker.refreshed_at, tracker.state) and not np.array_equal(first, tracker.state)

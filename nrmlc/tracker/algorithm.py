@@ -212,6 +212,8 @@ class NRMLCTracker:
         self.templates: np.ndarray | None = None
         self.template_gram: np.ndarray | None = None
         self.template_sq_norms: np.ndarray | None = None
+        #: The state the negatives were last drawn around.
+        self.refreshed_at: np.ndarray | None = None
         self._busy = threading.Lock()
 
     def __getstate__(self) -> dict:
@@ -268,7 +270,13 @@ class NRMLCTracker:
         if p.template_sampling == "scm":
             # SCM's zones, scaled by negative_push / SCM's 1/4 (the update zone keeps SCM's 4:5 ratio).
             push = p.negative_push * (1.0 if first else SCM_PUSH_UPDATE / SCM_PUSH_INIT)
-            states = scm_negative_states(self.rng, state, p.n_negative, p.patch_size, push)
+            clearance = (0.0, 0.0)
+            if p.negative_clearance == "motion" and not first:
+                # Keep the negatives off the path the target took since the last refresh: a
+                # fast target otherwise walks into where they were cut before the next one.
+                clearance = tuple(np.abs(state[:2] - self.refreshed_at[:2]))
+            self.refreshed_at = state.copy()
+            states = scm_negative_states(self.rng, state, p.n_negative, p.patch_size, push, clearance)
         else:
             states = negative_states(self.rng, state, p.n_negative, p.positive_radius, p.negative_radius)
         return self.patches(frame, states)

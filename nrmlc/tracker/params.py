@@ -127,6 +127,10 @@ class TrackerParams:
         exceeds this (for LEN(neg*)).
     patch_size : int
         Templates and candidates are patch_size x patch_size (paper: 32).
+    negative_clearance : {'none', 'motion'}
+        'motion' widens SCM's negative zone (``template_sampling='scm'``) on each axis by the
+        estimate's displacement since the negatives were last drawn, so that a fast target
+        does not walk into its own negatives before the next refresh (round 44, not adopted).
     template_sampling : {'scm', 'annulus'}
         Where template centres are drawn. 'scm' follows SCM's ``affineTrainG.m`` /
         ``updateDic.m`` (the lineage of the paper's template scheme): positives from
@@ -217,6 +221,7 @@ class TrackerParams:
     positive_sigma: float = bounded(1.0, 0, MAX_RADIUS)
     negative_push: float = bounded(0.25, 0, 2)
     patch_size: int = bounded(PATCH_SIZE, 4)
+    negative_clearance: Literal["none", "motion"] = "none"
     brightness: Literal["first_frame", "raw"] = "first_frame"
 
     # -- coding (Algorithm 1) -------------------------------------------------------------
@@ -413,7 +418,7 @@ PRESETS: dict[str, dict] = {
 SECTIONS: dict[str, tuple[str, ...]] = {
     "motion": ("n_particles", "motion_sigmas", "propagation", "translation_noise", "translation_floor"),
     "templates": ("n_positive", "n_negative", "template_sampling", "positive_radius", "negative_radius",
-                  "positive_sigma", "negative_push", "patch_size", "brightness"),
+                  "positive_sigma", "negative_push", "patch_size", "negative_clearance", "brightness"),
     "coding": ("dictionary_sizes", "coding", "lam", "beta", "n_iterations"),
     "confidence": ("alpha", "confidence"),
     "updates": ("update_interval", "max_positive", "update_error_threshold", "occlusion_detection",

@@ -88,12 +88,13 @@ def scm_positive_states(rng: np.random.Generator, state: np.ndarray, n: int, sig
 
 
 def scm_negative_states(rng: np.random.Generator, state: np.ndarray, n: int, patch_size: int,
-                        push: float) -> np.ndarray:
+                        push: float, clearance=(0.0, 0.0)) -> np.ndarray:
     """``n`` negative template states as SCM draws them (``affineTrainG.m``, ``updateDic.m``).
 
     Centres are drawn from N(centre, diag(w^2, h^2)) in image pixels; a coordinate that
     falls within ``push * w`` (``push * h``) of the target's is moved out to the edge of
-    that zone, on its own side, so no negative is centred on the target.
+    that zone, on its own side, so no negative is centred on the target. ``clearance``
+    (x, y) px widens the zone on each axis (round 44: the target's recent displacement).
 
     Returns
     -------
@@ -103,7 +104,7 @@ def scm_negative_states(rng: np.random.Generator, state: np.ndarray, n: int, pat
     states = np.tile(state, (n, 1))
     for axis, sigma in ((0, width), (1, height)):
         offset = sigma * rng.standard_normal(n)
-        zone = push * sigma
+        zone = push * sigma + clearance[axis]
         inside = np.abs(offset) <= zone
         # SCM maps [0, zone] to +zone and [-zone, 0) to -zone.
         offset[inside] = np.where(offset[inside] >= 0, zone, -zone)
