@@ -15,8 +15,9 @@ the baseline's synthetic-suite runs are first computed at this version and must 
 for bit, and V's real-target runs must all be in the cache; otherwise the screen stops.
 
 ``--pool A.json,B.json`` runs nothing: it joins screens written by ``--json`` at disjoint seeds
-(the same baseline, variants and targets, e.g. a round's screen and its check, each maybe on a
-branch's code version) and gives the paired differences and the verdict over all their seeds.
+(the same baseline and targets, e.g. a round's screen and its check, each maybe on a branch's
+code version) and gives the paired differences and the verdict over all their seeds, for the
+variants (by name) that every screen has.
 """
 from __future__ import annotations
 
@@ -92,12 +93,13 @@ def baseline_at_version(cache: RunCache, specs: list, version: str, jobs) -> lis
 
 def pool_screens(documents: list[dict], sources: list[str]) -> dict:
     """Screens (as ``--json`` writes them) at disjoint seeds joined into one, the verdicts
-    recomputed over all seeds. ``sources`` name the documents in errors.
+    recomputed over all seeds, for the variants (by name) that every screen has. ``sources``
+    name the documents in errors.
 
     Raises
     ------
     NrmlcError
-        When the screens share a seed, or differ in baseline, variants, groups or targets.
+        When the screens share a seed, differ in baseline or targets, or share no variant.
     """
     first, seen = documents[0], {}
     for source, document in zip(sources, documents):
@@ -108,8 +110,10 @@ def pool_screens(documents: list[dict], sources: list[str]) -> dict:
         for key, what in (("baseline", "baseline"), ("groups", "targets")):
             if document[key] != first[key]:
                 raise NrmlcError(f"--pool: {source} has another {what} than {sources[0]}")
-        if [v["name"] for v in document["variants"]] != [v["name"] for v in first["variants"]]:
-            raise NrmlcError(f"--pool: {source} screens other variants than {sources[0]}")
+    shared = [v["name"] for v in first["variants"]
+              if all(v["name"] in {w["name"] for w in document["variants"]} for document in documents)]
+    if not shared:
+        raise NrmlcError(f"--pool: no variant is in every one of {', '.join(sources)}")
 
     def joined(key, where=lambda document: document):
         return {name: [x for document in documents for x in where(document)[key][name]]
@@ -120,9 +124,10 @@ def pool_screens(documents: list[dict], sources: list[str]) -> dict:
     halves = {label: names for label, names in groups.items() if label in ("A", "B")}
     baseline_runs = joined("baseline_per_seed")
     rows = []
-    for index, variant in enumerate(first["variants"]):
-        def of_variant(document, index=index):
-            return document["variants"][index]
+    for name in shared:
+        def of_variant(document, name=name):
+            return next(v for v in document["variants"] if v["name"] == name)
+        variant = of_variant(first)
         runs, scales = joined("per_seed", of_variant), joined("scales", of_variant)
         differences = differences_by_group(runs, baseline_runs, groups, seeds)
         verdict = adopted(differences)

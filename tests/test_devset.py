@@ -281,3 +281,15 @@ def test_screen_pool_joins_disjoint_seeds_and_rejudges(tmp_path, capsys):
     assert message.count("\n") == 0 and "seed 0" in message and "first.json" in message
     assert screen.main(["--pool", f"{first},{tmp_path / 'missing.json'}"]) == 2
     assert "missing.json" in capsys.readouterr().err
+    # only the variants every screen has are pooled; none shared is an error
+    wider = document([4], 0.0)
+    wider["variants"].append(dict(wider["variants"][0], name="w"))
+    (tmp_path / "wider.json").write_text(json.dumps(wider))
+    assert screen.main(["--pool", f"{tmp_path / 'wider.json'},{first}", "--json", str(out)]) == 0
+    assert [v["name"] for v in json.loads(out.read_text())["variants"]] == ["v"]
+    other = document([5], 0.0)
+    other["variants"][0]["name"] = "u"
+    (tmp_path / "other.json").write_text(json.dumps(other))
+    capsys.readouterr()
+    assert screen.main(["--pool", f"{first},{tmp_path / 'other.json'}"]) == 2
+    assert "no variant" in capsys.readouterr().err
