@@ -91,6 +91,29 @@ def baseline_at_version(cache: RunCache, specs: list, version: str, jobs) -> lis
     return other.run(specs, jobs=jobs)
 
 
+def collapsed_by_half(scales: dict, groups: dict) -> dict:
+    """{'A': [...], 'B': [...]}: the collapsed targets (:func:`experiments.devset.collapsed`) per half."""
+    return {label: collapsed(scales, names) for label, names in groups.items() if label in ("A", "B")}
+
+
+def screen_row(name: str, params: dict, runs: dict, scales: dict, baseline_runs: dict, groups: dict,
+               seeds) -> dict:
+    """One variant's row of a screen: its runs against the baseline's and the rule's verdict."""
+    differences = differences_by_group(runs, baseline_runs, groups, seeds)
+    verdict = adopted(differences)
+    return {"name": name, "params": params, "differences": differences, "adopted": verdict[0],
+            "why": verdict[1], "per_seed": runs, "scales": scales, "collapsed": collapsed_by_half(scales, groups)}
+
+
+def screen_document(baseline: dict, baseline_runs: dict, baseline_scales: dict, seeds, groups: dict,
+                    rows: list[dict]) -> dict:
+    """What ``--json`` writes (and ``--pool`` reads)."""
+    means = {label: float(np.mean([np.mean(baseline_runs[n]) for n in names])) for label, names in groups.items()}
+    return {"baseline": baseline, "baseline_per_seed": baseline_runs, "baseline_scales": baseline_scales,
+            "baseline_collapsed": collapsed_by_half(baseline_scales, groups), "seeds": list(seeds),
+            "groups": groups, "baseline_means": means, "variants": rows}
+
+
 def pool_screens(documents: list[dict], sources: list[str]) -> dict:
     """Screens (as ``--json`` writes them) at disjoint seeds joined into one, the verdicts
     recomputed over all seeds, for the variants (by name) that every screen has. ``sources``
@@ -110,8 +133,8 @@ def pool_screens(documents: list[dict], sources: list[str]) -> dict:
         for key, what in (("baseline", "baseline"), ("groups", "targets")):
             if document[key] != first[key]:
                 raise NrmlcError(f"--pool: {source} has another {what} than {sources[0]}")
-    shared = [v["name"] for v in first["variants"]
-              if all(v["name"] in {w["name"] for w in document["variants"]} for document in documents)]
+    names_in = [{v["name"] for v in document["variants"]} for document in documents]
+    shared = [v["name"] for v in first["variants"] if all(v["name"] in names for names in names_in)]
     if not shared:
         raise NrmlcError(f"--pool: no variant is in every one of {', '.join(sources)}")
 
@@ -121,24 +144,15 @@ def pool_screens(documents: list[dict], sources: list[str]) -> dict:
 
     seeds = [seed for document in documents for seed in document["seeds"]]
     groups = first["groups"]
-    halves = {label: names for label, names in groups.items() if label in ("A", "B")}
     baseline_runs = joined("baseline_per_seed")
     rows = []
     for name in shared:
         def of_variant(document, name=name):
             return next(v for v in document["variants"] if v["name"] == name)
-        variant = of_variant(first)
-        runs, scales = joined("per_seed", of_variant), joined("scales", of_variant)
-        differences = differences_by_group(runs, baseline_runs, groups, seeds)
-        verdict = adopted(differences)
-        rows.append({"name": variant["name"], "params": variant["params"], "differences": differences,
-                     "adopted": verdict[0], "why": verdict[1], "per_seed": runs, "scales": scales,
-                     "collapsed": {label: collapsed(scales, names) for label, names in halves.items()}})
-    base_scales = joined("baseline_scales")
-    means = {label: float(np.mean([np.mean(baseline_runs[n]) for n in names])) for label, names in groups.items()}
-    return {"baseline": first["baseline"], "baseline_per_seed": baseline_runs, "baseline_scales": base_scales,
-            "baseline_collapsed": {label: collapsed(base_scales, names) for label, names in halves.items()},
-            "seeds": seeds, "groups": groups, "baseline_means": means, "variants": rows, "pooled_from": sources}
+        rows.append(screen_row(name, of_variant(first)["params"], joined("per_seed", of_variant),
+                               joined("scales", of_variant), baseline_runs, groups, seeds))
+    return dict(screen_document(first["baseline"], baseline_runs, joined("baseline_scales"), seeds, groups, rows),
+                pooled_from=sources)
 
 
 def format_screen(rows: list[dict]) -> str:
@@ -212,34 +226,21 @@ def main(argv=None) -> int:
         variants = [v for v, done in zip(variants, complete) if done]
         batches = batches[:1] + [b for b, done in zip(batches[1:], complete) if done]
     runs += [run_measures(cache.run(batch, jobs=args.jobs), batch) for batch in batches[1:]]
-    rows = []
-    halves = {label: names for label, names in groups.items() if label in ("A", "B")}
-
-    def collapsed_by_half(scales):
-        return {label: collapsed(scales, names) for label, names in halves.items()}
-
     base_overlaps, base_scales = overlaps_of(runs[0]), scales_of(runs[0])
-    for (name, params), measures in zip(variants, runs[1:]):
-        variant_runs, scales = overlaps_of(measures), scales_of(measures)
-        differences = differences_by_group(variant_runs, base_overlaps, groups, seeds)
-        verdict = adopted(differences)
-        rows.append({"name": name, "params": params.as_dict(), "differences": differences,
-                     "adopted": verdict[0], "why": verdict[1], "per_seed": variant_runs, "scales": scales,
-                     "collapsed": collapsed_by_half(scales)})
-    means = {label: float(np.mean([np.mean(base_overlaps[n]) for n in names])) for label, names in groups.items()}
-    base_collapsed = collapsed_by_half(base_scales)
+    rows = [screen_row(name, params.as_dict(), overlaps_of(measures), scales_of(measures), base_overlaps, groups,
+                       seeds)
+            for (name, params), measures in zip(variants, runs[1:])]
+    document = screen_document(baseline.as_dict(), base_overlaps, base_scales, seeds, groups, rows)
     print(f"baseline: preset {args.baseline_preset} {args.baseline or ''}; seeds {args.seeds}; mean overlap "
-          + ", ".join(f"{label} {value:.3f}" for label, value in means.items())
+          + ", ".join(f"{label} {value:.3f}" for label, value in document["baseline_means"].items())
           + "; collapsed (scale < 0.7 over the last quarter): "
-          + "; ".join(f"{label} {', '.join(names) or 'none'}" for label, names in base_collapsed.items()))
+          + "; ".join(f"{label} {', '.join(names) or 'none'}" for label, names in document["baseline_collapsed"].items()))
     table = format_screen(rows)
     print(table)
     if args.markdown:
         io.write_text(args.markdown, table + "\n")
     if args.json:
-        io.write_json(args.json, {"baseline": baseline.as_dict(), "baseline_per_seed": base_overlaps,
-                                  "baseline_scales": base_scales, "baseline_collapsed": base_collapsed,
-                                  "seeds": seeds, "groups": groups, "baseline_means": means, "variants": rows})
+        io.write_json(args.json, document)
     return 0
 
 
