@@ -235,7 +235,12 @@ def main(argv=None) -> int:
           + ", ".join(f"{label} {value:.3f}" for label, value in document["baseline_means"].items())
           + "; collapsed (scale < 0.7 over the last quarter): "
           + "; ".join(f"{label} {', '.join(names) or 'none'}" for label, names in document["baseline_collapsed"].items()))
-    table = format_screen(rows)
+    return _report(args, document)
+
+
+def _report(args, document: dict) -> int:
+    """Print a screen's table; write it (``--markdown``) and the document (``--json``)."""
+    table = format_screen(document["variants"])
     print(table)
     if args.markdown:
         io.write_text(args.markdown, table + "\n")
@@ -254,13 +259,7 @@ def _pool(args) -> int:
         print(f"error: {error}", file=sys.stderr)
         return 2
     print(f"pooled {len(sources)} screens: seeds {', '.join(map(str, pooled['seeds']))}")
-    table = format_screen(pooled["variants"])
-    print(table)
-    if args.markdown:
-        io.write_text(args.markdown, table + "\n")
-    if args.json:
-        io.write_json(args.json, pooled)
-    return 0
+    return _report(args, pooled)
 
 
 if __name__ == "__main__":
