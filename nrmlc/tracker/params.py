@@ -170,6 +170,9 @@ class TrackerParams:
         A re-detection candidate can become the estimate (and carry weight) only if its
         eps_pos < this: a wide search would otherwise jump to whatever the negatives rank
         well, such as another player or the other jogger.
+    redetect_trigger : float
+        The search runs on a frame whose best candidate's eps_pos* is at least this (0.99: the
+        code puts no weight on a positive; round 46 measures lower values, branch ``round46``).
     generative_weight : float
         A local-patch generative term in the confidence (*ours*, after SCM's generative
         model; 0 = off, the paper): log h gains ``generative_weight * log(similarity)``,
@@ -242,6 +245,7 @@ class TrackerParams:
     redetect_count: int = bounded(300, 0, MAX_PARTICLES)
     redetect_factor: float = bounded(4.0, 1, 100)
     redetect_accept: float = bounded(0.3, 0, 1, low_open=True)
+    redetect_trigger: float = bounded(0.99, 0, 1, low_open=True)
 
     # -- generative term (ours, after SCM; nrmlc.tracker.generative) ----------------------
     generative_weight: float = bounded(10.0, 0, 1000)
@@ -418,7 +422,7 @@ SECTIONS: dict[str, tuple[str, ...]] = {
     "confidence": ("alpha", "confidence"),
     "updates": ("update_interval", "max_positive", "update_error_threshold", "occlusion_detection",
                 "occlusion_max_negative", "coefficient_tolerance"),
-    "redetection": ("redetect_count", "redetect_factor", "redetect_accept"),
+    "redetection": ("redetect_count", "redetect_factor", "redetect_accept", "redetect_trigger"),
     "generative": ("generative_weight", "generative_candidates", "generative_neighbours", "generative_lam",
                    "generative_interval", "generative_step"),
 }

@@ -21,7 +21,7 @@ REDETECT_TRIGGER = 0.99
 
 def needs_search(params, best_error_positive: float) -> bool:
     """Whether this frame runs the search (it is on, and the best candidate uses no positive)."""
-    return params.redetect_count > 0 and best_error_positive >= REDETECT_TRIGGER
+    return params.redetect_count > 0 and best_error_positive >= params.redetect_trigger
 
 
 def search(tracker, frame: np.ndarray, states: np.ndarray, coding) -> tuple:
