@@ -13,7 +13,7 @@ import pytest
 from nrmlc import NRMLCTracker, TrackerParams
 from nrmlc.metrics import overlaps
 from nrmlc.testing.scenes import jump_scene
-from nrmlc.tracker.redetect import REDETECT_TRIGGER
+from nrmlc.tracker.redetect import REDETECT_TRIGGER, needs_search
 
 REPO_ROOT = Path(__file__).resolve().parent.parent
 JUMP_FRAME = 4
@@ -68,6 +68,15 @@ def test_only_confident_redetection_candidates_carry_weight():
     weights = np.exp(tracker.log_weights - tracker.log_weights.max())
     assert np.all(weights[200:][extra_error >= 0.3] == 0) and weights[:200].sum() > 0
     assert tracker.sample_particles().shape == (200, 6)
+
+
+def test_the_trigger_is_a_threshold_on_the_best_candidates_eps_pos():
+    default = TrackerParams()
+    assert default.redetect_trigger == REDETECT_TRIGGER
+    assert needs_search(default, 1.0) and not needs_search(default, 0.5)
+    weak = TrackerParams(redetect_trigger=0.15)
+    assert needs_search(weak, 0.15) and needs_search(weak, 0.2) and not needs_search(weak, 0.149)
+    assert not needs_search(TrackerParams(redetect_count=0, redetect_trigger=0.15), 1.0)
 
 
 def test_paper_preset_has_no_redetection():
