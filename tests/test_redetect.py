@@ -113,3 +113,32 @@ def test_redetection_is_bit_identical_with_one_or_two_threads():
     assert [o[0] for o in outputs] == ["1", "2"]
     assert int(outputs[0][1]) > 0  # the search ran
     assert outputs[0][2] == outputs[1][2]
+
+
+def test_a_weakly_recognised_frame_counts_only_nearby_search_candidates():
+    import dataclasses
+
+    from nrmlc.geometry import state_to_box
+    from nrmlc.tracker.redetect import search
+    from nrmlc.tracker.algorithm import as_gray_frame
+    frames, truth = jump_scene(jump_frame=JUMP_FRAME)
+    tracker = NRMLCTracker(seed=1, params=TrackerParams(n_particles=200, redetect_count=300,
+                                                        redetect_trigger=0.15, redetect_weak_radius=0.3,
+                                                        redetect_accept=1.0))
+    tracker.init(frames[0], truth[0])
+    tracker.update(frames[1])
+    states = tracker.sample_particles()
+    frame = as_gray_frame(frames[2])
+    coding = tracker.encode(tracker.patches(frame, states))
+    box = state_to_box(tracker.state, tracker.params.patch_size)
+    reach = 0.3 * np.sqrt(box[2] * box[3])
+    for best_error, limited in ((0.5, True), (1.0, False)):
+        weak = dataclasses.replace(coding, error_positive=np.full_like(coding.error_positive, best_error))
+        all_states, coded = search(tracker, frame, states, weak)
+        distance = np.hypot(*(all_states[200:, :2] - tracker.state[:2]).T)
+        counted = np.isfinite(coded.log_confidence[200:])
+        expected = coded.error_positive[200:] < 1.0
+        if limited:
+            expected &= distance <= reach
+        assert np.array_equal(counted, expected)
+        assert counted.any() and (distance[counted] > reach).any() != limited

@@ -173,6 +173,10 @@ class TrackerParams:
     redetect_trigger : float
         The search runs on a frame whose best candidate's eps_pos* is at least this (0.99: the
         code puts no weight on a positive; round 46 measures lower values, branch ``round46``).
+    redetect_weak_radius : float
+        On a frame searched with eps_pos* < 0.99 (``redetect_trigger`` below it), a search
+        candidate counts only within this many target sizes (sqrt(w h) of the previous
+        estimate) of it (100: no limit; round 47, branch ``round47``).
     generative_weight : float
         A local-patch generative term in the confidence (*ours*, after SCM's generative
         model; 0 = off, the paper): log h gains ``generative_weight * log(similarity)``,
@@ -246,6 +250,7 @@ class TrackerParams:
     redetect_factor: float = bounded(4.0, 1, 100)
     redetect_accept: float = bounded(0.3, 0, 1, low_open=True)
     redetect_trigger: float = bounded(0.99, 0, 1, low_open=True)
+    redetect_weak_radius: float = bounded(100.0, 0, 100, low_open=True)
 
     # -- generative term (ours, after SCM; nrmlc.tracker.generative) ----------------------
     generative_weight: float = bounded(10.0, 0, 1000)
@@ -422,7 +427,8 @@ SECTIONS: dict[str, tuple[str, ...]] = {
     "confidence": ("alpha", "confidence"),
     "updates": ("update_interval", "max_positive", "update_error_threshold", "occlusion_detection",
                 "occlusion_max_negative", "coefficient_tolerance"),
-    "redetection": ("redetect_count", "redetect_factor", "redetect_accept", "redetect_trigger"),
+    "redetection": ("redetect_count", "redetect_factor", "redetect_accept", "redetect_trigger",
+                    "redetect_weak_radius"),
     "generative": ("generative_weight", "generative_candidates", "generative_neighbours", "generative_lam",
                    "generative_interval", "generative_step"),
 }

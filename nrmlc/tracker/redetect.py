@@ -14,6 +14,8 @@ import dataclasses
 
 import numpy as np
 
+from nrmlc.geometry import state_to_box
+
 #: eps_pos* at or above which a frame runs the search: 1 up to rounding, i.e. the best
 #: candidate's code puts no weight on a positive template.
 REDETECT_TRIGGER = 0.99
@@ -45,6 +47,13 @@ def search(tracker, frame: np.ndarray, states: np.ndarray, coding) -> tuple:
     p = tracker.params
     extra = tracker.diffuse(np.tile(tracker.state, (p.redetect_count, 1)), p.redetect_factor)
     extra_coding = tracker.encode(tracker.patches(frame, extra))
+    accepted = extra_coding.error_positive < p.redetect_accept
+    best = int(np.argmax(coding.log_confidence))
+    if coding.error_positive[best] < REDETECT_TRIGGER:
+        # A weakly recognised frame (round 47): the target is likely near, a look-alike farther.
+        box = state_to_box(tracker.state, p.patch_size)
+        reach = p.redetect_weak_radius * np.sqrt(box[2] * box[3])
+        accepted &= np.hypot(*(extra[:, :2] - tracker.state[:2]).T) <= reach
     extra_coding = dataclasses.replace(extra_coding, log_confidence=np.where(
-        extra_coding.error_positive < p.redetect_accept, extra_coding.log_confidence, -np.inf))
+        accepted, extra_coding.log_confidence, -np.inf))
     return np.vstack([states, extra]), coding.joined(extra_coding)
