@@ -142,3 +142,18 @@ def test_a_weakly_recognised_frame_counts_only_nearby_search_candidates():
             expected &= distance <= reach
         assert np.array_equal(counted, expected)
         assert counted.any() and (distance[counted] > reach).any() != limited
+
+
+def test_no_positive_joins_while_the_hold_after_a_search_move_lasts():
+    frames, truth = jump_scene(jump_frame=JUMP_FRAME)
+    tracker = NRMLCTracker(seed=0, params=TrackerParams(translation_floor=0.0, update_interval=1,
+                                                        redetect_hold_positives=3))
+    tracker.init(frames[0], truth[0])
+    moved, updated = [], []
+    for frame in frames[1:]:
+        tracker.update(frame)
+        moved.append(tracker.last.redetected)
+        updated.append(bool(getattr(tracker.last, "updated_positive", False)))
+    first = moved.index(True)
+    assert not any(updated[first:first + 4])
+    assert any(updated[:first]) and any(updated[first + 4:])

@@ -300,6 +300,7 @@ class NRMLCTracker:
                                                   p.generative_step)
         self.frame_index = 0
         self.last = None
+        self.last_search_move = None
 
     def update(self, image) -> np.ndarray:
         """Track into the next frame; returns the 1-based ``(x, y, w, h)`` box.
@@ -467,6 +468,8 @@ class NRMLCTracker:
         negative = indices >= n_pos
         n_negative_used = int(np.count_nonzero(np.abs(codes[negative]) > p.coefficient_tolerance))
         self.state = states[best].copy()
+        if best >= n_local:
+            self.last_search_move = self.frame_index
         result = FrameResult(
             state=self.state.copy(), box=state_to_box(self.state, p.patch_size),
             confidence=_exp_or_inf(log_confidence[best]), log_confidence=float(log_confidence[best]),
@@ -488,6 +491,9 @@ class NRMLCTracker:
         positives = self.positive_templates
         kept = np.arange(len(positives), dtype=np.int64)
         blocked = p.occlusion_detection and result.occluded
+        # Round 49: a box the search moved to may be a look-alike's; its first frames teach nothing.
+        blocked |= (self.last_search_move is not None
+                    and self.frame_index - self.last_search_move <= p.redetect_hold_positives)
         if not blocked and result.error_positive < p.update_error_threshold:
             if len(positives) < p.max_positive:
                 positives = np.vstack([positives, new])
