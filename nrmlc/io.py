@@ -49,6 +49,26 @@ def _target(path: str | os.PathLike) -> Path:
     return Path(os.path.realpath(os.fspath(path)))
 
 
+def _write_target(path: str | os.PathLike) -> Path:
+    """:func:`_target`, for a write about to begin.
+
+    Raises
+    ------
+    OutputError
+        If that is a device, FIFO, socket or folder: a rename would replace it (as root, even
+        ``/dev/null``) with a regular file.
+    """
+    target = _target(path)
+    try:
+        mode = os.stat(target).st_mode
+    except OSError:
+        return target  # not there yet, or not ours to judge here: the write names what fails
+    if not stat.S_ISREG(mode):
+        raise OutputError(f"{os.fspath(path)}: not a regular file (a device, FIFO, socket or folder); "
+                          f"nothing written, give a file name")
+    return target
+
+
 def _prefix(name: str) -> str:
     # Short enough that a legal 255-byte file name still leaves room for ".tmp-" and the random part.
     return f".tmp-{name[:64]}-"
@@ -74,7 +94,7 @@ def temporary_for(path: str | os.PathLike) -> Path:
     It keeps ``path``'s extension (some writers, like OpenCV's, choose the
     format from it). Pair it with :func:`commit` or :func:`discard`.
     """
-    target = _target(path)
+    target = _write_target(path)
     target.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(prefix=_prefix(target.stem), suffix=target.suffix, dir=target.parent)
     os.close(fd)
@@ -115,7 +135,7 @@ def commit(tmp: str | os.PathLike, path: str | os.PathLike) -> Path:
 def _replace(tmp: str | os.PathLike, path: str | os.PathLike) -> Path:
     """Rename the fsynced ``tmp`` over ``path``'s target (``tmp`` is removed if that fails)."""
     try:
-        target = _target(path)
+        target = _write_target(path)
         os.replace(tmp, target)
     except OSError as exc:
         discard(tmp)
@@ -137,7 +157,7 @@ def discard(tmp: str | os.PathLike) -> None:
 
 def _stage(path: str | os.PathLike, write: Callable[[Any], None], mode: str) -> Path:
     """Write and fsync a uniquely named temporary file beside ``path``'s target; return its path."""
-    target = _target(path)
+    target = _write_target(path)
     try:
         target.parent.mkdir(parents=True, exist_ok=True)
         fd, tmp = tempfile.mkstemp(prefix=_prefix(target.name), dir=target.parent)
@@ -245,7 +265,7 @@ class Together:
             for tmp, path in pending:
                 _fsync_file(tmp, path)
             with _signals_held():
-                targets = [_target(path) for _, path in pending]
+                targets = [_write_target(path) for _, path in pending]
                 existed = [target.exists() for target in targets]
                 backups = [_keep_old(target) for target in targets]
                 for done, ((tmp, path), target) in enumerate(zip(pending, targets)):

@@ -269,6 +269,27 @@ ls -a {mount}
     assert out.read_bytes() == earlier_out
 
 
+def test_a_write_never_replaces_a_device_fifo_or_folder(tmp_path):
+    # Renaming over /dev/null as root turns it into a regular file; a FIFO and a link to one
+    # stand in for it here (a real device would be clobbered if this failed).
+    fifo = tmp_path / "pipe.json"
+    os.mkfifo(fifo)
+    link = tmp_path / "link.json"
+    link.symlink_to(fifo)
+    folder = tmp_path / "folder.json"
+    folder.mkdir()
+    for path in (fifo, link, folder):
+        for write in (lambda: io.write_json(path, {"a": 1}), lambda: io.write_text(path, "x\n"),
+                      lambda: io.temporary_for(path)):
+            with pytest.raises(OutputError, match=rf"{re.escape(path.name)}: not a regular file"):
+                write()
+        with pytest.raises(OutputError, match="not a regular file"):
+            with io.Together() as outputs:
+                outputs.text(path, "x\n")
+    assert fifo.is_fifo() and link.is_symlink() and folder.is_dir()
+    assert not temporaries(tmp_path)
+
+
 def test_a_failed_rename_undoes_the_earlier_ones(tmp_path, monkeypatch):
     first, second = tmp_path / "a.txt", tmp_path / "b.txt"
     first.write_text("old a\n")
