@@ -50,7 +50,8 @@ def _target(path: str | os.PathLike) -> Path:
 
 
 def _write_target(path: str | os.PathLike) -> Path:
-    """:func:`_target`, for a write about to begin.
+    """:func:`_target`, for a write about to begin: every temporary file is created through it
+    (:func:`temporary_for`, :func:`_stage`), so the renames that follow need not check again.
 
     Raises
     ------
@@ -135,7 +136,7 @@ def commit(tmp: str | os.PathLike, path: str | os.PathLike) -> Path:
 def _replace(tmp: str | os.PathLike, path: str | os.PathLike) -> Path:
     """Rename the fsynced ``tmp`` over ``path``'s target (``tmp`` is removed if that fails)."""
     try:
-        target = _write_target(path)
+        target = _target(path)
         os.replace(tmp, target)
     except OSError as exc:
         discard(tmp)
@@ -265,7 +266,7 @@ class Together:
             for tmp, path in pending:
                 _fsync_file(tmp, path)
             with _signals_held():
-                targets = [_write_target(path) for _, path in pending]
+                targets = [_target(path) for _, path in pending]
                 existed = [target.exists() for target in targets]
                 backups = [_keep_old(target) for target in targets]
                 for done, ((tmp, path), target) in enumerate(zip(pending, targets)):
