@@ -297,3 +297,33 @@ def test_a_misspelt_parameter_gets_a_suggestion():
         TrackerParams().replace(n_particle=10)
     with pytest.raises(ParameterError, match=r"unknown parameter 'zzz'$"):
         parse_param_assignment("zzz=1")
+
+
+def test_the_early_gate_is_the_targets_own_first_frames_level_within_its_bounds():
+    """Round 50's ``update_threshold_early_factor``: the gate on eps_pos* is max(the paper's
+    0.1, min(0.3, factor x the median eps_pos* of the first 10 frames)), and a result between
+    the paper's gate and the target's own joins the positives only under the switch."""
+    import dataclasses
+
+    from nrmlc.data.image import as_gray_frame
+    from nrmlc.testing.scenes import jump_scene
+    frames, truth = jump_scene(jump=0, n_frames=14)
+    gates = {}
+    for factor in (0.0, 1.5):
+        tracker = NRMLCTracker(seed=0, params=TrackerParams(update_threshold_early_factor=factor))
+        tracker.init(frames[0], truth[0])
+        for frame in frames[1:]:
+            tracker.update(frame)
+        assert len(tracker.early_errors) == 10
+        median = float(np.median(tracker.early_errors))
+        assert tracker.update_threshold() == (0.1 if factor == 0 else max(0.1, min(0.3, factor * median)))
+        for level, expected in ((0.01, 0.1), (0.15, 0.225), (0.5, 0.3)):
+            tracker.early_errors = [level] * 10
+            gates[factor, level] = tracker.update_threshold()
+            assert gates[factor, level] == pytest.approx(0.1 if factor == 0 else expected)
+        tracker.early_errors = [0.15] * 10
+        result = dataclasses.replace(tracker.last, error_positive=0.2, occluded=False)
+        before = len(tracker.positive_templates)
+        frame = tracker._levelled(as_gray_frame(frames[-1]))
+        tracker._update_templates(frame, result, tracker.positive_templates[:1] * 1.0)
+        assert (len(tracker.positive_templates) > before) == (factor > 0)

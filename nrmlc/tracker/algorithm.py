@@ -45,6 +45,11 @@ from nrmlc.tracker.redetect import REDETECT_TRIGGER, needs_search, search
 from nrmlc.tracker.templates import (SCM_PUSH_INIT, SCM_PUSH_UPDATE, negative_states, positive_states,
                                      scm_negative_states, scm_positive_states)
 
+#: Round 50: the first frames whose eps_pos* set a target's own update gate, and that gate's cap.
+EARLY_FRAMES = 10
+EARLY_THRESHOLD_CAP = 0.3
+
+
 @dataclass(frozen=True)
 class Coding:
     """Algorithm 1 on n candidates, and their confidence (what :meth:`NRMLCTracker.encode` gives).
@@ -300,6 +305,7 @@ class NRMLCTracker:
                                                   p.generative_step)
         self.frame_index = 0
         self.last = None
+        self.early_errors = []
 
     def update(self, image) -> np.ndarray:
         """Track into the next frame; returns the 1-based ``(x, y, w, h)`` box.
@@ -323,6 +329,8 @@ class NRMLCTracker:
         frame = self._levelled(frame)
         self.frame_index += 1
         result, coding, best = self.step(frame)
+        if len(self.early_errors) < EARLY_FRAMES:
+            self.early_errors.append(result.error_positive)
         best_patch = coding.patches[best][None, :]
         if (self.frame_index + 1) % self.params.update_interval == 0:
             self._update_templates(frame, result, best_patch)
@@ -480,6 +488,14 @@ class NRMLCTracker:
         self.last = result
         return result, coding, best
 
+    def update_threshold(self) -> float:
+        """The gate on eps_pos* for a positive to join (``update_threshold_early_factor``)."""
+        p = self.params
+        if p.update_threshold_early_factor == 0 or not self.early_errors:
+            return p.update_error_threshold
+        own = p.update_threshold_early_factor * float(np.median(self.early_errors))
+        return max(p.update_error_threshold, min(EARLY_THRESHOLD_CAP, own))
+
     def _update_templates(self, frame: np.ndarray, result: FrameResult, new: np.ndarray) -> None:
         """Algorithm 2, step 2.5: negatives always; positives (``new``, the estimate's (1, d)
         patch) unless occluded."""
@@ -488,7 +504,7 @@ class NRMLCTracker:
         positives = self.positive_templates
         kept = np.arange(len(positives), dtype=np.int64)
         blocked = p.occlusion_detection and result.occluded
-        if not blocked and result.error_positive < p.update_error_threshold:
+        if not blocked and result.error_positive < self.update_threshold():
             if len(positives) < p.max_positive:
                 positives = np.vstack([positives, new])
                 kept = np.append(kept, -1)

@@ -118,6 +118,11 @@ class TrackerParams:
         A result joins the positives only if eps_pos* is below this (paper: 0.1, the default;
         see ``update_interval``). eps is a squared error between unit-norm 1024-vectors, in
         [0, 4].
+    update_threshold_early_factor : float
+        When above 0, the threshold is instead max(``update_error_threshold``, min(0.3, this x
+        the median eps_pos* of the first 10 frames' estimates)): a target whose own first frames
+        are coded at eps_pos* above 0.1 (no positive ever joins) gets a gate at its own level
+        (0: off, the paper's fixed gate; round 50, branch ``round50``).
     occlusion_detection : bool
         Block positive updates while the target is judged occluded.
     occlusion_max_negative : int
@@ -234,6 +239,7 @@ class TrackerParams:
     update_interval: int = bounded(5, 1)
     max_positive: int = 100
     update_error_threshold: float = 0.1
+    update_threshold_early_factor: float = bounded(0.0, 0, 100)
     occlusion_detection: bool = True
     occlusion_max_negative: int = 2
     coefficient_tolerance: float = bounded(1e-6, 0)
@@ -416,7 +422,8 @@ SECTIONS: dict[str, tuple[str, ...]] = {
                   "positive_sigma", "negative_push", "patch_size", "brightness"),
     "coding": ("dictionary_sizes", "coding", "lam", "beta", "n_iterations"),
     "confidence": ("alpha", "confidence"),
-    "updates": ("update_interval", "max_positive", "update_error_threshold", "occlusion_detection",
+    "updates": ("update_interval", "max_positive", "update_error_threshold", "update_threshold_early_factor",
+                "occlusion_detection",
                 "occlusion_max_negative", "coefficient_tolerance"),
     "redetection": ("redetect_count", "redetect_factor", "redetect_accept"),
     "generative": ("generative_weight", "generative_candidates", "generative_neighbours", "generative_lam",
