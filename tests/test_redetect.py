@@ -13,7 +13,7 @@ import pytest
 from nrmlc import NRMLCTracker, TrackerParams
 from nrmlc.metrics import overlaps
 from nrmlc.testing.scenes import jump_scene
-from nrmlc.tracker.redetect import REDETECT_TRIGGER
+from nrmlc.tracker.redetect import REDETECT_TRIGGER, needs_search
 
 REPO_ROOT = Path(__file__).resolve().parent.parent
 JUMP_FRAME = 4
@@ -70,6 +70,16 @@ def test_only_confident_redetection_candidates_carry_weight():
     assert tracker.sample_particles().shape == (200, 6)
 
 
+def test_the_trigger_is_a_threshold_on_the_best_candidates_eps_pos():
+    strict = TrackerParams.paper(redetect_count=300)
+    assert strict.redetect_trigger == REDETECT_TRIGGER
+    assert needs_search(strict, 1.0) and not needs_search(strict, 0.5)
+    assert needs_search(TrackerParams(), 0.5) and not needs_search(TrackerParams(), 0.1)
+    weak = TrackerParams(redetect_trigger=0.15)
+    assert needs_search(weak, 0.15) and needs_search(weak, 0.2) and not needs_search(weak, 0.149)
+    assert not needs_search(TrackerParams(redetect_count=0, redetect_trigger=0.15), 1.0)
+
+
 def test_paper_preset_has_no_redetection():
     assert TrackerParams.paper().redetect_count == 0
     assert TrackerParams().redetect_count > 0
@@ -104,3 +114,55 @@ def test_redetection_is_bit_identical_with_one_or_two_threads():
     assert [o[0] for o in outputs] == ["1", "2"]
     assert int(outputs[0][1]) > 0  # the search ran
     assert outputs[0][2] == outputs[1][2]
+
+
+def test_a_weakly_recognised_frame_counts_only_nearby_search_candidates():
+    import dataclasses
+
+    from nrmlc.geometry import state_to_box
+    from nrmlc.tracker.redetect import search
+    from nrmlc.tracker.algorithm import as_gray_frame
+    frames, truth = jump_scene(jump_frame=JUMP_FRAME)
+    tracker = NRMLCTracker(seed=1, params=TrackerParams(n_particles=200, redetect_count=300,
+                                                        redetect_trigger=0.15, redetect_weak_radius=0.3,
+                                                        redetect_accept=1.0, redetect_weak_accept=1.0))
+    tracker.init(frames[0], truth[0])
+    tracker.update(frames[1])
+    states = tracker.sample_particles()
+    frame = as_gray_frame(frames[2])
+    coding = tracker.encode(tracker.patches(frame, states))
+    box = state_to_box(tracker.state, tracker.params.patch_size)
+    reach = 0.3 * np.sqrt(box[2] * box[3])
+    for best_error, limited in ((0.5, True), (1.0, False)):
+        weak = dataclasses.replace(coding, error_positive=np.full_like(coding.error_positive, best_error))
+        all_states, coded = search(tracker, frame, states, weak)
+        distance = np.hypot(*(all_states[200:, :2] - tracker.state[:2]).T)
+        counted = np.isfinite(coded.log_confidence[200:])
+        expected = coded.error_positive[200:] < 1.0
+        if limited:
+            expected &= distance <= reach
+        assert np.array_equal(counted, expected)
+        assert counted.any() and (distance[counted] > reach).any() != limited
+
+
+def test_a_weakly_recognised_frame_takes_only_a_find_recognised_under_the_weak_acceptance():
+    import dataclasses
+
+    from nrmlc.tracker.redetect import search
+    from nrmlc.tracker.algorithm import as_gray_frame
+    frames, truth = jump_scene(jump_frame=JUMP_FRAME)
+    tracker = NRMLCTracker(seed=1, params=TrackerParams(n_particles=200, redetect_count=300,
+                                                        redetect_trigger=0.15, redetect_accept=1.0,
+                                                        redetect_weak_accept=0.5))
+    tracker.init(frames[0], truth[0])
+    tracker.update(frames[1])
+    states = tracker.sample_particles()
+    frame = as_gray_frame(frames[JUMP_FRAME])
+    coding = tracker.encode(tracker.patches(frame, states))
+    for best_error, weak in ((0.5, True), (1.0, False)):
+        marked = dataclasses.replace(coding, error_positive=np.full_like(coding.error_positive, best_error))
+        _, coded = search(tracker, frame, states, marked)
+        error = coded.error_positive[200:]
+        counted = np.isfinite(coded.log_confidence[200:])
+        assert np.array_equal(counted, error < (0.5 if weak else 1.0))
+        assert ((error >= 0.5) & (error < 1.0)).any() and (error < 0.5).any()

@@ -170,6 +170,24 @@ class TrackerParams:
         A re-detection candidate can become the estimate (and carry weight) only if its
         eps_pos < this: a wide search would otherwise jump to whatever the negatives rank
         well, such as another player or the other jogger.
+    redetect_trigger : float
+        The search also runs on a frame whose best candidate's eps_pos* is at least this, i.e.
+        only weakly recognised (*ours*: 0.15; 0.99, the ``paper`` preset's and the default's
+        before round 51, runs it only where the code uses no positive). Round 51 adopted the
+        weak trigger with the two fields below: A +0.035 ± 0.019, B +0.022 ± 0.006 at seeds
+        260-264 (docs/findings/round-51-weak-search-takes-only-recognised-finds.md); alone, it
+        took look-alikes (round 46).
+    redetect_weak_radius : float
+        On a weakly recognised frame (eps_pos* below 0.99), a search candidate counts only
+        within this many target sizes (sqrt(w h) of the previous estimate) of it: the target
+        is likely near, a look-alike farther (*ours*: 1; 100, no limit, in the ``paper`` preset;
+        round 47).
+    redetect_weak_accept : float
+        On a weakly recognised frame, a search candidate counts only if its eps_pos is also
+        below this: the paper's update gate, a find recognised as well as a result that may
+        join the positives (*ours*: 0.1; 1, only ``redetect_accept``, in the ``paper`` preset;
+        round 51: a take at 0.17 began Suv's loss, the finds that held BlurFace, Boy and Lemming
+        were at 0.01-0.10).
     generative_weight : float
         A local-patch generative term in the confidence (*ours*, after SCM's generative
         model; 0 = off, the paper): log h gains ``generative_weight * log(similarity)``,
@@ -242,6 +260,9 @@ class TrackerParams:
     redetect_count: int = bounded(300, 0, MAX_PARTICLES)
     redetect_factor: float = bounded(4.0, 1, 100)
     redetect_accept: float = bounded(0.3, 0, 1, low_open=True)
+    redetect_trigger: float = bounded(0.15, 0, 1, low_open=True)
+    redetect_weak_radius: float = bounded(1.0, 0, 100, low_open=True)
+    redetect_weak_accept: float = bounded(0.1, 0, 1, low_open=True)
 
     # -- generative term (ours, after SCM; nrmlc.tracker.generative) ----------------------
     generative_weight: float = bounded(10.0, 0, 1000)
@@ -403,7 +424,8 @@ class TrackerParams:
 PRESETS: dict[str, dict] = {
     "default": {},
     "paper": dict(template_sampling="annulus", propagation="condensation", alpha=2.5,
-                  update_interval=5, update_error_threshold=0.1, redetect_count=0,
+                  update_interval=5, update_error_threshold=0.1, redetect_count=0, redetect_trigger=0.99,
+                  redetect_weak_radius=100.0, redetect_weak_accept=1.0,
                   generative_weight=0.0, n_particles=600, translation_floor=0.0, n_negative=150,
                   brightness="raw"),
 }
@@ -418,7 +440,8 @@ SECTIONS: dict[str, tuple[str, ...]] = {
     "confidence": ("alpha", "confidence"),
     "updates": ("update_interval", "max_positive", "update_error_threshold", "occlusion_detection",
                 "occlusion_max_negative", "coefficient_tolerance"),
-    "redetection": ("redetect_count", "redetect_factor", "redetect_accept"),
+    "redetection": ("redetect_count", "redetect_factor", "redetect_accept", "redetect_trigger",
+                    "redetect_weak_radius", "redetect_weak_accept"),
     "generative": ("generative_weight", "generative_candidates", "generative_neighbours", "generative_lam",
                    "generative_interval", "generative_step"),
 }
