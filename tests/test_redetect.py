@@ -153,7 +153,7 @@ def test_a_weakly_recognised_frame_takes_only_a_find_recognised_under_the_weak_a
     frames, truth = jump_scene(jump_frame=JUMP_FRAME)
     tracker = NRMLCTracker(seed=1, params=TrackerParams(n_particles=200, redetect_count=300,
                                                         redetect_trigger=0.15, redetect_accept=1.0,
-                                                        redetect_weak_accept=0.5))
+                                                        redetect_weak_radius=100.0, redetect_weak_accept=0.5))
     tracker.init(frames[0], truth[0])
     tracker.update(frames[1])
     states = tracker.sample_particles()
