@@ -150,7 +150,8 @@ def frames_tracked(sequence, n_frames: int | None) -> int:
 #: for its five switches, then removed them; round 20 for ``translation_floor``, whose 0 is the
 #: ``paper`` preset's and the default's before round 20).
 SWITCHES_ADDED_LATER: dict[str, object] = {"translation_floor": 0.0, "brightness": "raw", "redetect_trigger": 0.99,
-                                               "redetect_weak_radius": 100.0}
+                                               "redetect_weak_radius": 100.0,
+                                               "redetect_weak_accept": 1.0}
 
 
 def params_for_key(params: TrackerParams) -> dict:

@@ -142,3 +142,26 @@ def test_a_weakly_recognised_frame_counts_only_nearby_search_candidates():
             expected &= distance <= reach
         assert np.array_equal(counted, expected)
         assert counted.any() and (distance[counted] > reach).any() != limited
+
+
+def test_a_weakly_recognised_frame_takes_only_a_find_recognised_under_the_weak_acceptance():
+    import dataclasses
+
+    from nrmlc.tracker.redetect import search
+    from nrmlc.tracker.algorithm import as_gray_frame
+    frames, truth = jump_scene(jump_frame=JUMP_FRAME)
+    tracker = NRMLCTracker(seed=1, params=TrackerParams(n_particles=200, redetect_count=300,
+                                                        redetect_trigger=0.15, redetect_accept=1.0,
+                                                        redetect_weak_accept=0.5))
+    tracker.init(frames[0], truth[0])
+    tracker.update(frames[1])
+    states = tracker.sample_particles()
+    frame = as_gray_frame(frames[JUMP_FRAME])
+    coding = tracker.encode(tracker.patches(frame, states))
+    for best_error, weak in ((0.5, True), (1.0, False)):
+        marked = dataclasses.replace(coding, error_positive=np.full_like(coding.error_positive, best_error))
+        _, coded = search(tracker, frame, states, marked)
+        error = coded.error_positive[200:]
+        counted = np.isfinite(coded.log_confidence[200:])
+        assert np.array_equal(counted, error < (0.5 if weak else 1.0))
+        assert ((error >= 0.5) & (error < 1.0)).any() and (error < 0.5).any()

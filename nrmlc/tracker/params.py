@@ -177,6 +177,10 @@ class TrackerParams:
         On a frame searched with eps_pos* < 0.99 (``redetect_trigger`` below it), a search
         candidate counts only within this many target sizes (sqrt(w h) of the previous
         estimate) of it (100: no limit; round 47, branch ``round47``).
+    redetect_weak_accept : float
+        On a frame searched with eps_pos* < 0.99, a search candidate counts only if its eps_pos is
+        also below this (1: only ``redetect_accept``; 0.1, the update gate, keeps only a find
+        recognised as a positive would be; round 51, branch ``round51``).
     generative_weight : float
         A local-patch generative term in the confidence (*ours*, after SCM's generative
         model; 0 = off, the paper): log h gains ``generative_weight * log(similarity)``,
@@ -251,6 +255,7 @@ class TrackerParams:
     redetect_accept: float = bounded(0.3, 0, 1, low_open=True)
     redetect_trigger: float = bounded(0.99, 0, 1, low_open=True)
     redetect_weak_radius: float = bounded(100.0, 0, 100, low_open=True)
+    redetect_weak_accept: float = bounded(1.0, 0, 1, low_open=True)
 
     # -- generative term (ours, after SCM; nrmlc.tracker.generative) ----------------------
     generative_weight: float = bounded(10.0, 0, 1000)
@@ -428,7 +433,7 @@ SECTIONS: dict[str, tuple[str, ...]] = {
     "updates": ("update_interval", "max_positive", "update_error_threshold", "occlusion_detection",
                 "occlusion_max_negative", "coefficient_tolerance"),
     "redetection": ("redetect_count", "redetect_factor", "redetect_accept", "redetect_trigger",
-                    "redetect_weak_radius"),
+                    "redetect_weak_radius", "redetect_weak_accept"),
     "generative": ("generative_weight", "generative_candidates", "generative_neighbours", "generative_lam",
                    "generative_interval", "generative_step"),
 }

@@ -54,6 +54,8 @@ def search(tracker, frame: np.ndarray, states: np.ndarray, coding) -> tuple:
         box = state_to_box(tracker.state, p.patch_size)
         reach = p.redetect_weak_radius * np.sqrt(box[2] * box[3])
         accepted &= np.hypot(*(extra[:, :2] - tracker.state[:2]).T) <= reach
+        # Round 51: the finds that helped were recognised under the update gate; Suv's slide was not.
+        accepted &= extra_coding.error_positive < p.redetect_weak_accept
     extra_coding = dataclasses.replace(extra_coding, log_confidence=np.where(
         accepted, extra_coding.log_confidence, -np.inf))
     return np.vstack([states, extra]), coding.joined(extra_coding)
