@@ -116,26 +116,36 @@ def test_redetection_is_bit_identical_with_one_or_two_threads():
     assert outputs[0][2] == outputs[1][2]
 
 
-def test_a_weakly_recognised_frame_counts_only_nearby_search_candidates():
+def _searched_frame(frame_index: int, **changes):
+    """A tracker one frame into the jump scene, the particles of frame ``frame_index`` and their
+    coding, and a ``search(best_error)`` that runs the search as if the particles' best had that
+    eps_pos*: returns (all states, their coding)."""
     import dataclasses
 
-    from nrmlc.geometry import state_to_box
-    from nrmlc.tracker.redetect import search
     from nrmlc.tracker.algorithm import as_gray_frame
+    from nrmlc.tracker.redetect import search
     frames, truth = jump_scene(jump_frame=JUMP_FRAME)
-    tracker = NRMLCTracker(seed=1, params=TrackerParams(n_particles=200, redetect_count=300,
-                                                        redetect_trigger=0.15, redetect_weak_radius=0.3,
-                                                        redetect_accept=1.0, redetect_weak_accept=1.0))
+    tracker = NRMLCTracker(seed=1, params=TrackerParams(n_particles=200, redetect_count=300, redetect_trigger=0.15,
+                                                        redetect_accept=1.0, **changes))
     tracker.init(frames[0], truth[0])
     tracker.update(frames[1])
     states = tracker.sample_particles()
-    frame = as_gray_frame(frames[2])
+    frame = as_gray_frame(frames[frame_index])
     coding = tracker.encode(tracker.patches(frame, states))
+
+    def searched(best_error: float):
+        marked = dataclasses.replace(coding, error_positive=np.full_like(coding.error_positive, best_error))
+        return search(tracker, frame, states, marked)
+    return tracker, searched
+
+
+def test_a_weakly_recognised_frame_counts_only_nearby_search_candidates():
+    from nrmlc.geometry import state_to_box
+    tracker, searched = _searched_frame(2, redetect_weak_radius=0.3, redetect_weak_accept=1.0)
     box = state_to_box(tracker.state, tracker.params.patch_size)
     reach = 0.3 * np.sqrt(box[2] * box[3])
     for best_error, limited in ((0.5, True), (1.0, False)):
-        weak = dataclasses.replace(coding, error_positive=np.full_like(coding.error_positive, best_error))
-        all_states, coded = search(tracker, frame, states, weak)
+        all_states, coded = searched(best_error)
         distance = np.hypot(*(all_states[200:, :2] - tracker.state[:2]).T)
         counted = np.isfinite(coded.log_confidence[200:])
         expected = coded.error_positive[200:] < 1.0
@@ -146,22 +156,9 @@ def test_a_weakly_recognised_frame_counts_only_nearby_search_candidates():
 
 
 def test_a_weakly_recognised_frame_takes_only_a_find_recognised_under_the_weak_acceptance():
-    import dataclasses
-
-    from nrmlc.tracker.redetect import search
-    from nrmlc.tracker.algorithm import as_gray_frame
-    frames, truth = jump_scene(jump_frame=JUMP_FRAME)
-    tracker = NRMLCTracker(seed=1, params=TrackerParams(n_particles=200, redetect_count=300,
-                                                        redetect_trigger=0.15, redetect_accept=1.0,
-                                                        redetect_weak_radius=100.0, redetect_weak_accept=0.5))
-    tracker.init(frames[0], truth[0])
-    tracker.update(frames[1])
-    states = tracker.sample_particles()
-    frame = as_gray_frame(frames[JUMP_FRAME])
-    coding = tracker.encode(tracker.patches(frame, states))
+    _, searched = _searched_frame(JUMP_FRAME, redetect_weak_radius=100.0, redetect_weak_accept=0.5)
     for best_error, weak in ((0.5, True), (1.0, False)):
-        marked = dataclasses.replace(coding, error_positive=np.full_like(coding.error_positive, best_error))
-        _, coded = search(tracker, frame, states, marked)
+        _, coded = searched(best_error)
         error = coded.error_positive[200:]
         counted = np.isfinite(coded.log_confidence[200:])
         assert np.array_equal(counted, error < (0.5 if weak else 1.0))
