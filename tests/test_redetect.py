@@ -163,3 +163,13 @@ def test_a_weakly_recognised_frame_takes_only_a_find_recognised_under_the_weak_a
         counted = np.isfinite(coded.log_confidence[200:])
         assert np.array_equal(counted, error < (0.5 if weak else 1.0))
         assert ((error >= 0.5) & (error < 1.0)).any() and (error < 0.5).any()
+
+
+def test_the_search_spreads_its_candidates_scales_by_the_scale_factor():
+    spreads = {}
+    for factor in (1.0, 10.0):
+        tracker, searched = _searched_frame(2, redetect_scale_factor=factor)
+        all_states, _ = searched(0.5)
+        spreads[factor] = np.std(np.log(all_states[200:, 2] / tracker.state[2]))
+    assert 0.005 < spreads[1.0] < 0.02
+    assert 0.05 < spreads[10.0] < 0.2

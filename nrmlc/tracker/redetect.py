@@ -3,7 +3,8 @@ the target looks like nothing the positives hold, or holds it only weakly.
 
 On a frame whose best candidate's eps_pos* is at least ``redetect_trigger`` (0.15: weakly
 recognised, or not at all), ``redetect_count`` more candidates are drawn around the previous
-estimate with ``redetect_factor`` times the translation noise and coded on the same templates;
+estimate with ``redetect_factor`` times the translation noise (and ``redetect_scale_factor``
+times the log-scale noise) and coded on the same templates;
 one counts only if its eps_pos < ``redetect_accept`` (a wide search would otherwise jump to
 whatever the negatives rank well, such as another player). On a weakly recognised frame
 (eps_pos* below :data:`REDETECT_TRIGGER`) it must also lie within ``redetect_weak_radius``
@@ -53,7 +54,8 @@ def search(tracker, frame: np.ndarray, states: np.ndarray, coding) -> tuple:
     log h = -inf: it can be neither the estimate nor resampled.
     """
     p = tracker.params
-    extra = tracker.diffuse(np.tile(tracker.state, (p.redetect_count, 1)), p.redetect_factor)
+    extra = tracker.diffuse(np.tile(tracker.state, (p.redetect_count, 1)), p.redetect_factor,
+                            p.redetect_scale_factor)
     extra_coding = tracker.encode(tracker.patches(frame, extra))
     accepted = extra_coding.error_positive < p.redetect_accept
     best = int(np.argmax(coding.log_confidence))
