@@ -173,3 +173,10 @@ def test_the_search_spreads_its_candidates_scales_by_the_scale_factor():
         spreads[factor] = np.std(np.log(all_states[200:, 2] / tracker.state[2]))
     assert 0.005 < spreads[1.0] < 0.02
     assert 0.05 < spreads[10.0] < 0.2
+
+
+def test_the_search_can_spread_its_candidates_scales_upwards_only():
+    tracker, searched = _searched_frame(2, redetect_scale_factor=10.0, redetect_scale_up_only=True)
+    all_states, _ = searched(0.5)
+    log_scale = np.log(all_states[200:, 2] / tracker.state[2])
+    assert log_scale.min() >= -1e-12 and log_scale.mean() > 0.05

@@ -371,10 +371,11 @@ class NRMLCTracker:
             states = np.tile(self.state, (n, 1))
         return self.diffuse(states)
 
-    def diffuse(self, states: np.ndarray, translation_factor: float = 1.0, scale_factor: float = 1.0) -> np.ndarray:
+    def diffuse(self, states: np.ndarray, translation_factor: float = 1.0, scale_factor: float = 1.0,
+                scale_up_only: bool = False) -> np.ndarray:
         """Add the motion model's noise to ``states`` (n, 6) in place, with the translation
         noise ``translation_factor`` times larger and the log-scale noise ``scale_factor`` times
-        larger (re-detection); clamp them."""
+        larger, or only upwards (re-detection); clamp them."""
         p = self.params
         standard = self.rng.standard_normal((len(states), 6))
         noise = standard * np.asarray(p.motion_sigmas)
@@ -388,6 +389,8 @@ class NRMLCTracker:
             noise[:, 0:2] *= translation_factor
         if scale_factor != 1.0:
             noise[:, 2] *= scale_factor
+        if scale_up_only:
+            noise[:, 2] = np.abs(noise[:, 2])
         states[:, 0:2] += noise[:, 0:2]
         states[:, 2] *= np.exp(noise[:, 2])
         states[:, 3] += noise[:, 3]

@@ -192,6 +192,9 @@ class TrackerParams:
         The search candidates' log-scale noise, in multiples of the motion model's (1: the
         motion model's, the default; round 52 screens wider: a box that shrank while the target
         was weakly recognised is otherwise searched for only at the shrunk size).
+    redetect_scale_up_only : bool
+        The search candidates' log-scale noise only upwards (its absolute value; round 53: the
+        search on both sides took smaller recognised finds, Freeman1's and Fish's boxes shrank).
     generative_weight : float
         A local-patch generative term in the confidence (*ours*, after SCM's generative
         model; 0 = off, the paper): log h gains ``generative_weight * log(similarity)``,
@@ -268,6 +271,7 @@ class TrackerParams:
     redetect_weak_radius: float = bounded(1.0, 0, 100, low_open=True)
     redetect_weak_accept: float = bounded(0.1, 0, 1, low_open=True)
     redetect_scale_factor: float = bounded(1.0, 1, 100)
+    redetect_scale_up_only: bool = False
 
     # -- generative term (ours, after SCM; nrmlc.tracker.generative) ----------------------
     generative_weight: float = bounded(10.0, 0, 1000)
@@ -446,7 +450,8 @@ SECTIONS: dict[str, tuple[str, ...]] = {
     "updates": ("update_interval", "max_positive", "update_error_threshold", "occlusion_detection",
                 "occlusion_max_negative", "coefficient_tolerance"),
     "redetection": ("redetect_count", "redetect_factor", "redetect_accept", "redetect_trigger",
-                    "redetect_weak_radius", "redetect_weak_accept", "redetect_scale_factor"),
+                    "redetect_weak_radius", "redetect_weak_accept", "redetect_scale_factor",
+                    "redetect_scale_up_only"),
     "generative": ("generative_weight", "generative_candidates", "generative_neighbours", "generative_lam",
                    "generative_interval", "generative_step"),
 }

@@ -55,7 +55,7 @@ def search(tracker, frame: np.ndarray, states: np.ndarray, coding) -> tuple:
     """
     p = tracker.params
     extra = tracker.diffuse(np.tile(tracker.state, (p.redetect_count, 1)), p.redetect_factor,
-                            p.redetect_scale_factor)
+                            p.redetect_scale_factor, p.redetect_scale_up_only)
     extra_coding = tracker.encode(tracker.patches(frame, extra))
     accepted = extra_coding.error_positive < p.redetect_accept
     best = int(np.argmax(coding.log_confidence))
