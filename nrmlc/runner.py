@@ -153,7 +153,8 @@ def frames_tracked(sequence, n_frames: int | None) -> int:
 SWITCHES_ADDED_LATER: dict[str, object] = {"translation_floor": 0.0, "brightness": "raw", "redetect_trigger": 0.99,
                                            "redetect_weak_radius": 100.0, "redetect_weak_accept": 1.0,
                                            "redetect_scale_factor": 1.0,
-                                           "redetect_scale_up_only": False}
+                                           "redetect_scale_up_only": False,
+                                           "redetect_scale_recover": False}
 
 
 def params_for_key(params: TrackerParams) -> dict:

@@ -180,3 +180,13 @@ def test_the_search_can_spread_its_candidates_scales_upwards_only():
     all_states, _ = searched(0.5)
     log_scale = np.log(all_states[200:, 2] / tracker.state[2])
     assert log_scale.min() >= -1e-12 and log_scale.mean() > 0.05
+
+
+def test_the_search_recovers_scale_only_up_to_the_last_recognised_scale():
+    tracker, searched = _searched_frame(2, redetect_scale_factor=10.0, redetect_scale_up_only=True,
+                                        redetect_scale_recover=True)
+    tracker.recognised_scale = tracker.state[2] * 1.05
+    all_states, _ = searched(0.5)
+    scales = all_states[200:, 2]
+    assert scales.min() >= tracker.state[2] - 1e-12
+    assert np.isclose(scales.max(), tracker.recognised_scale) and (scales < tracker.recognised_scale).any()

@@ -204,6 +204,8 @@ class NRMLCTracker:
         self.generative: LocalHistogramModel | None = None
         self.frame_shape: tuple | None = None
         self.initial_box: np.ndarray | None = None
+        #: The scale (state[2]) of the last estimate recognised under the update gate (round 54).
+        self.recognised_scale: float | None = None
         self.first_frame_mean: float | None = None
         self.particles: np.ndarray | None = None
         self.log_weights: np.ndarray | None = None
@@ -288,6 +290,7 @@ class NRMLCTracker:
         self.frame_shape = frame.shape
         self.state = box_to_state(box, p.patch_size)
         self.initial_box = box
+        self.recognised_scale = float(self.state[2])
         self.first_frame_mean = float(frame.mean(dtype=np.float64))
         self.particles = None
         self.log_weights = None
@@ -345,6 +348,7 @@ class NRMLCTracker:
         if not usable_boxes(box):
             raise ParameterError(f"box must be 4 finite numbers (x, y, w, h) with w, h > 0, got {box.tolist()}")
         self.state = box_to_state(box, self.params.patch_size)
+        self.recognised_scale = float(self.state[2])
         self.particles = None
         self.log_weights = None
 
@@ -473,6 +477,8 @@ class NRMLCTracker:
         negative = indices >= n_pos
         n_negative_used = int(np.count_nonzero(np.abs(codes[negative]) > p.coefficient_tolerance))
         self.state = states[best].copy()
+        if coding.error_positive[best] < p.update_error_threshold:
+            self.recognised_scale = float(self.state[2])
         result = FrameResult(
             state=self.state.copy(), box=state_to_box(self.state, p.patch_size),
             confidence=_exp_or_inf(log_confidence[best]), log_confidence=float(log_confidence[best]),

@@ -195,6 +195,10 @@ class TrackerParams:
     redetect_scale_up_only : bool
         The search candidates' log-scale noise only upwards (its absolute value; round 53: the
         search on both sides took smaller recognised finds, Freeman1's and Fish's boxes shrank).
+    redetect_scale_recover : bool
+        The search candidates' scale at most that of the last estimate whose eps_pos* was under
+        ``update_error_threshold``, or the estimate's if larger (round 54: upwards alone, the
+        search grew the boxes of blurred targets to 1.4-1.7 of their size).
     generative_weight : float
         A local-patch generative term in the confidence (*ours*, after SCM's generative
         model; 0 = off, the paper): log h gains ``generative_weight * log(similarity)``,
@@ -272,6 +276,7 @@ class TrackerParams:
     redetect_weak_accept: float = bounded(0.1, 0, 1, low_open=True)
     redetect_scale_factor: float = bounded(1.0, 1, 100)
     redetect_scale_up_only: bool = False
+    redetect_scale_recover: bool = False
 
     # -- generative term (ours, after SCM; nrmlc.tracker.generative) ----------------------
     generative_weight: float = bounded(10.0, 0, 1000)
@@ -451,7 +456,7 @@ SECTIONS: dict[str, tuple[str, ...]] = {
                 "occlusion_max_negative", "coefficient_tolerance"),
     "redetection": ("redetect_count", "redetect_factor", "redetect_accept", "redetect_trigger",
                     "redetect_weak_radius", "redetect_weak_accept", "redetect_scale_factor",
-                    "redetect_scale_up_only"),
+                    "redetect_scale_up_only", "redetect_scale_recover"),
     "generative": ("generative_weight", "generative_candidates", "generative_neighbours", "generative_lam",
                    "generative_interval", "generative_step"),
 }

@@ -56,6 +56,9 @@ def search(tracker, frame: np.ndarray, states: np.ndarray, coding) -> tuple:
     p = tracker.params
     extra = tracker.diffuse(np.tile(tracker.state, (p.redetect_count, 1)), p.redetect_factor,
                             p.redetect_scale_factor, p.redetect_scale_up_only)
+    if p.redetect_scale_recover:
+        # Only back up to the scale of the last estimate recognised under the update gate.
+        extra[:, 2] = np.minimum(extra[:, 2], max(tracker.state[2], tracker.recognised_scale))
     extra_coding = tracker.encode(tracker.patches(frame, extra))
     accepted = extra_coding.error_positive < p.redetect_accept
     best = int(np.argmax(coding.log_confidence))
