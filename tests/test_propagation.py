@@ -269,6 +269,19 @@ def test_full_positive_set_replaces_the_closest(sequence):
     assert np.array_equal(tracker.positive_templates[untouched], positives[untouched])
 
 
+def test_an_unopposed_result_joins_the_positives_only_under_its_own_threshold(sequence):
+    import dataclasses
+
+    for n_negative_used, threshold, joins in ((0, 0.0, False), (0, 0.9, True), (1, 0.9, False), (0, 0.4, False)):
+        tracker = NRMLCTracker(seed=0, update_unopposed_threshold=threshold, **FAST)
+        tracker.init(sequence.frame(0), sequence.init_box)
+        result, coding, best = tracker.step(sequence.frame(1))
+        weak = dataclasses.replace(result, error_positive=0.5, n_negative_used=n_negative_used, occluded=False)
+        before = len(tracker.positive_templates)
+        tracker._update_templates(sequence.frame(1), weak, coding.patches[best][None, :])
+        assert (len(tracker.positive_templates) == before + 1) == joins
+
+
 @pytest.mark.parametrize("name", ["patch_normalization", "dictionaries", "wide_share", "wide_factor",
                                   "estimate_count", "velocity_damping", "antialias", "keep_initial_positives",
                                   "scale_prior", "illumination_window", "features", "gray_weight",

@@ -488,7 +488,10 @@ class NRMLCTracker:
         positives = self.positive_templates
         kept = np.arange(len(positives), dtype=np.int64)
         blocked = p.occlusion_detection and result.occluded
-        if not blocked and result.error_positive < p.update_error_threshold:
+        # Round 55: a result whose code uses no negative template is the target's, however weakly
+        # the positives recognise it (after a change of light nothing is under the gate).
+        unopposed = result.n_negative_used == 0 and result.error_positive < p.update_unopposed_threshold
+        if not blocked and (result.error_positive < p.update_error_threshold or unopposed):
             if len(positives) < p.max_positive:
                 positives = np.vstack([positives, new])
                 kept = np.append(kept, -1)

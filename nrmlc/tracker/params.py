@@ -118,6 +118,11 @@ class TrackerParams:
         A result joins the positives only if eps_pos* is below this (paper: 0.1, the default;
         see ``update_interval``). eps is a squared error between unit-norm 1024-vectors, in
         [0, 4].
+    update_unopposed_threshold : float
+        A result whose code puts no weight on a negative template also joins the positives if
+        its eps_pos* is below this (0: never, the default and the paper; round 55 screens it: on
+        Man, after the room's light changes, eps_pos* stays 0.5-0.8 with no negative in the code,
+        and the positives never learn the lit face).
     occlusion_detection : bool
         Block positive updates while the target is judged occluded.
     occlusion_max_negative : int
@@ -252,6 +257,7 @@ class TrackerParams:
     update_interval: int = bounded(5, 1)
     max_positive: int = 100
     update_error_threshold: float = 0.1
+    update_unopposed_threshold: float = bounded(0.0, 0, 4)
     occlusion_detection: bool = True
     occlusion_max_negative: int = 2
     coefficient_tolerance: float = bounded(1e-6, 0)
@@ -438,8 +444,8 @@ SECTIONS: dict[str, tuple[str, ...]] = {
                   "positive_sigma", "negative_push", "patch_size", "brightness"),
     "coding": ("dictionary_sizes", "coding", "lam", "beta", "n_iterations"),
     "confidence": ("alpha", "confidence"),
-    "updates": ("update_interval", "max_positive", "update_error_threshold", "occlusion_detection",
-                "occlusion_max_negative", "coefficient_tolerance"),
+    "updates": ("update_interval", "max_positive", "update_error_threshold", "update_unopposed_threshold",
+                "occlusion_detection", "occlusion_max_negative", "coefficient_tolerance"),
     "redetection": ("redetect_count", "redetect_factor", "redetect_accept", "redetect_trigger",
                     "redetect_weak_radius", "redetect_weak_accept"),
     "generative": ("generative_weight", "generative_candidates", "generative_neighbours", "generative_lam",
