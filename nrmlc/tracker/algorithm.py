@@ -204,6 +204,8 @@ class NRMLCTracker:
         self.generative: LocalHistogramModel | None = None
         self.frame_shape: tuple | None = None
         self.initial_box: np.ndarray | None = None
+        #: Positive updates through the paper's gate since init (round 56).
+        self.gated_updates = 0
         self.first_frame_mean: float | None = None
         self.particles: np.ndarray | None = None
         self.log_weights: np.ndarray | None = None
@@ -288,6 +290,7 @@ class NRMLCTracker:
         self.frame_shape = frame.shape
         self.state = box_to_state(box, p.patch_size)
         self.initial_box = box
+        self.gated_updates = 0
         self.first_frame_mean = float(frame.mean(dtype=np.float64))
         self.particles = None
         self.log_weights = None
@@ -491,7 +494,13 @@ class NRMLCTracker:
         # Round 55: a result whose code uses no negative template is the target's, however weakly
         # the positives recognise it (after a change of light nothing is under the gate).
         unopposed = result.n_negative_used == 0 and result.error_positive < p.update_unopposed_threshold
-        if not blocked and (result.error_positive < p.update_error_threshold or unopposed):
+        if p.update_unopposed_after_gated and self.gated_updates == 0:
+            # Round 56: only for a target the positives once recognised under the gate (round 55:
+            # positives that never recognised the skater learned the pair of skaters).
+            unopposed = False
+        gated = result.error_positive < p.update_error_threshold
+        if not blocked and (gated or unopposed):
+            self.gated_updates += int(gated)
             if len(positives) < p.max_positive:
                 positives = np.vstack([positives, new])
                 kept = np.append(kept, -1)

@@ -123,6 +123,10 @@ class TrackerParams:
         its eps_pos* is below this (0: never, the default and the paper; round 55 screens it: on
         Man, after the room's light changes, eps_pos* stays 0.5-0.8 with no negative in the code,
         and the positives never learn the lit face).
+    update_unopposed_after_gated : bool
+        The unopposed update only once a result has joined the positives through the paper's
+        gate since the first frame (round 56: round 55's row lost the skaters, whose first-frame
+        positives never recognised them under the gate).
     occlusion_detection : bool
         Block positive updates while the target is judged occluded.
     occlusion_max_negative : int
@@ -258,6 +262,7 @@ class TrackerParams:
     max_positive: int = 100
     update_error_threshold: float = 0.1
     update_unopposed_threshold: float = bounded(0.0, 0, 4)
+    update_unopposed_after_gated: bool = False
     occlusion_detection: bool = True
     occlusion_max_negative: int = 2
     coefficient_tolerance: float = bounded(1e-6, 0)
@@ -445,7 +450,7 @@ SECTIONS: dict[str, tuple[str, ...]] = {
     "coding": ("dictionary_sizes", "coding", "lam", "beta", "n_iterations"),
     "confidence": ("alpha", "confidence"),
     "updates": ("update_interval", "max_positive", "update_error_threshold", "update_unopposed_threshold",
-                "occlusion_detection", "occlusion_max_negative", "coefficient_tolerance"),
+                "update_unopposed_after_gated", "occlusion_detection", "occlusion_max_negative", "coefficient_tolerance"),
     "redetection": ("redetect_count", "redetect_factor", "redetect_accept", "redetect_trigger",
                     "redetect_weak_radius", "redetect_weak_accept"),
     "generative": ("generative_weight", "generative_candidates", "generative_neighbours", "generative_lam",
