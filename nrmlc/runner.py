@@ -153,7 +153,8 @@ def frames_tracked(sequence, n_frames: int | None) -> int:
 SWITCHES_ADDED_LATER: dict[str, object] = {"translation_floor": 0.0, "brightness": "raw", "redetect_trigger": 0.99,
                                            "redetect_weak_radius": 100.0, "redetect_weak_accept": 1.0,
                                            "update_unopposed_threshold": 0.0,
-                                           "update_unopposed_after_gated": False}
+                                           "update_unopposed_after_gated": False,
+                                           "update_unopposed_quiet": 0}
 
 
 def params_for_key(params: TrackerParams) -> dict:

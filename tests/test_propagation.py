@@ -296,6 +296,20 @@ def test_an_unopposed_result_joins_only_after_a_gated_update_when_asked(sequence
         assert (len(tracker.positive_templates) == before + 1) == joins
 
 
+def test_an_unopposed_result_waits_out_the_quiet_frames_after_an_occlusion(sequence):
+    import dataclasses
+
+    for frames_ago, joins in ((3, False), (11, True)):
+        tracker = NRMLCTracker(seed=0, update_unopposed_threshold=1.0, update_unopposed_quiet=10, **FAST)
+        tracker.init(sequence.frame(0), sequence.init_box)
+        result, coding, best = tracker.step(sequence.frame(1))
+        tracker.last_occluded_frame = tracker.frame_index - frames_ago
+        weak = dataclasses.replace(result, error_positive=0.5, n_negative_used=0, occluded=False)
+        before = len(tracker.positive_templates)
+        tracker._update_templates(sequence.frame(1), weak, coding.patches[best][None, :])
+        assert (len(tracker.positive_templates) == before + 1) == joins
+
+
 @pytest.mark.parametrize("name", ["patch_normalization", "dictionaries", "wide_share", "wide_factor",
                                   "estimate_count", "velocity_damping", "antialias", "keep_initial_positives",
                                   "scale_prior", "illumination_window", "features", "gray_weight",

@@ -206,6 +206,8 @@ class NRMLCTracker:
         self.initial_box: np.ndarray | None = None
         #: Positive updates through the paper's gate since init (round 56).
         self.gated_updates = 0
+        #: The last frame judged occluded (round 57); -inf before any.
+        self.last_occluded_frame = -np.inf
         self.first_frame_mean: float | None = None
         self.particles: np.ndarray | None = None
         self.log_weights: np.ndarray | None = None
@@ -291,6 +293,7 @@ class NRMLCTracker:
         self.state = box_to_state(box, p.patch_size)
         self.initial_box = box
         self.gated_updates = 0
+        self.last_occluded_frame = -np.inf
         self.first_frame_mean = float(frame.mean(dtype=np.float64))
         self.particles = None
         self.log_weights = None
@@ -326,6 +329,8 @@ class NRMLCTracker:
         frame = self._levelled(frame)
         self.frame_index += 1
         result, coding, best = self.step(frame)
+        if result.occluded:
+            self.last_occluded_frame = self.frame_index
         best_patch = coding.patches[best][None, :]
         if (self.frame_index + 1) % self.params.update_interval == 0:
             self._update_templates(frame, result, best_patch)
@@ -497,6 +502,10 @@ class NRMLCTracker:
         if p.update_unopposed_after_gated and self.gated_updates == 0:
             # Round 56: only for a target the positives once recognised under the gate (round 55:
             # positives that never recognised the skater learned the pair of skaters).
+            unopposed = False
+        if self.frame_index - self.last_occluded_frame <= p.update_unopposed_quiet:
+            # Round 57: not soon after an occlusion, when the box may be on the occluder (Walking2:
+            # a take one frame after the passer-by covered her joined, and the gate then took him).
             unopposed = False
         gated = result.error_positive < p.update_error_threshold
         if not blocked and (gated or unopposed):
