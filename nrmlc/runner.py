@@ -154,7 +154,8 @@ SWITCHES_ADDED_LATER: dict[str, object] = {"translation_floor": 0.0, "brightness
                                            "redetect_weak_radius": 100.0, "redetect_weak_accept": 1.0,
                                            "update_unopposed_threshold": 0.0,
                                            "update_unopposed_after_gated": False,
-                                           "update_unopposed_quiet": 0}
+                                           "update_unopposed_quiet": 0,
+                                           "update_unopposed_clean": False}
 
 
 def params_for_key(params: TrackerParams) -> dict:

@@ -310,6 +310,20 @@ def test_an_unopposed_result_waits_out_the_quiet_frames_after_an_occlusion(seque
         assert (len(tracker.positive_templates) == before + 1) == joins
 
 
+def test_an_unopposed_result_joins_only_with_no_occlusion_since_the_last_gated_update(sequence):
+    import dataclasses
+
+    for occluded, gated, joins in ((-3, -5, False), (-5, -3, True), (-np.inf, -np.inf, False)):
+        tracker = NRMLCTracker(seed=0, update_unopposed_threshold=1.0, update_unopposed_clean=True, **FAST)
+        tracker.init(sequence.frame(0), sequence.init_box)
+        result, coding, best = tracker.step(sequence.frame(1))
+        tracker.last_occluded_frame, tracker.last_gated_frame = occluded, gated
+        weak = dataclasses.replace(result, error_positive=0.5, n_negative_used=0, occluded=False)
+        before = len(tracker.positive_templates)
+        tracker._update_templates(sequence.frame(1), weak, coding.patches[best][None, :])
+        assert (len(tracker.positive_templates) == before + 1) == joins
+
+
 @pytest.mark.parametrize("name", ["patch_normalization", "dictionaries", "wide_share", "wide_factor",
                                   "estimate_count", "velocity_damping", "antialias", "keep_initial_positives",
                                   "scale_prior", "illumination_window", "features", "gray_weight",

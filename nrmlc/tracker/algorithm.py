@@ -208,6 +208,8 @@ class NRMLCTracker:
         self.gated_updates = 0
         #: The last frame judged occluded (round 57); -inf before any.
         self.last_occluded_frame = -np.inf
+        #: The last frame whose result joined through the paper's gate (round 58); -inf before any.
+        self.last_gated_frame = -np.inf
         self.first_frame_mean: float | None = None
         self.particles: np.ndarray | None = None
         self.log_weights: np.ndarray | None = None
@@ -294,6 +296,7 @@ class NRMLCTracker:
         self.initial_box = box
         self.gated_updates = 0
         self.last_occluded_frame = -np.inf
+        self.last_gated_frame = -np.inf
         self.first_frame_mean = float(frame.mean(dtype=np.float64))
         self.particles = None
         self.log_weights = None
@@ -507,9 +510,16 @@ class NRMLCTracker:
             # Round 57: not soon after an occlusion, when the box may be on the occluder (Walking2:
             # a take one frame after the passer-by covered her joined, and the gate then took him).
             unopposed = False
+        if p.update_unopposed_clean and not self.last_occluded_frame < self.last_gated_frame:
+            # Round 58: only while no frame was judged occluded since the last gated update, so the
+            # box is still the one the positives last recognised (Fish, Lemming and Walking2 lost
+            # their target through occlusions and round 57's row taught the positives what it held).
+            unopposed = False
         gated = result.error_positive < p.update_error_threshold
         if not blocked and (gated or unopposed):
             self.gated_updates += int(gated)
+            if gated:
+                self.last_gated_frame = self.frame_index
             if len(positives) < p.max_positive:
                 positives = np.vstack([positives, new])
                 kept = np.append(kept, -1)

@@ -131,6 +131,9 @@ class TrackerParams:
         The unopposed update not within this many frames after a frame judged occluded (0: no
         wait, the default; round 57: on Walking2 a take one frame after the passer-by covered the
         target joined as unopposed, and the gate then admitted him).
+    update_unopposed_clean : bool
+        The unopposed update only while no frame has been judged occluded since the last result
+        that joined through the paper's gate (round 58).
     occlusion_detection : bool
         Block positive updates while the target is judged occluded.
     occlusion_max_negative : int
@@ -268,6 +271,7 @@ class TrackerParams:
     update_unopposed_threshold: float = bounded(0.0, 0, 4)
     update_unopposed_after_gated: bool = False
     update_unopposed_quiet: int = bounded(0, 0)
+    update_unopposed_clean: bool = False
     occlusion_detection: bool = True
     occlusion_max_negative: int = 2
     coefficient_tolerance: float = bounded(1e-6, 0)
@@ -455,7 +459,8 @@ SECTIONS: dict[str, tuple[str, ...]] = {
     "coding": ("dictionary_sizes", "coding", "lam", "beta", "n_iterations"),
     "confidence": ("alpha", "confidence"),
     "updates": ("update_interval", "max_positive", "update_error_threshold", "update_unopposed_threshold",
-                "update_unopposed_after_gated", "update_unopposed_quiet", "occlusion_detection", "occlusion_max_negative", "coefficient_tolerance"),
+                "update_unopposed_after_gated", "update_unopposed_quiet",
+                "update_unopposed_clean", "occlusion_detection", "occlusion_max_negative", "coefficient_tolerance"),
     "redetection": ("redetect_count", "redetect_factor", "redetect_accept", "redetect_trigger",
                     "redetect_weak_radius", "redetect_weak_accept"),
     "generative": ("generative_weight", "generative_candidates", "generative_neighbours", "generative_lam",
