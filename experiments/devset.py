@@ -129,18 +129,23 @@ def run_measures(results, specs) -> dict:
     Returns
     -------
     dict of target -> {"overlap": [mean overlap], "scale": [:func:`tracked_scale`],
-    "lost_at": [share of its frames before the loss of lock, or None]}
+    "lost_at": [share of its frames before the loss of lock, or None],
+    "shrunk_at": [share of its frames before the scale first stays below :data:`COLLAPSED_BELOW`
+    for as many frames as a loss of lock takes, or None]}
     """
-    from experiments.shared import lock_lost_at
+    from experiments.shared import first_run_below, lock_lost_at
 
     table: dict = {}
     for spec, result in zip(specs, results):
         evaluation = score(result.boxes, spec.sequence)
         lost = lock_lost_at(evaluation.overlaps, evaluation.frames)
-        entry = table.setdefault(spec.sequence.name, {"overlap": [], "scale": [], "lost_at": []})
+        frames, ratios = scale_ratios(result.boxes, spec.sequence)
+        shrunk = first_run_below(ratios, frames, COLLAPSED_BELOW)
+        entry = table.setdefault(spec.sequence.name, {"overlap": [], "scale": [], "lost_at": [], "shrunk_at": []})
         entry["overlap"].append(float(evaluation.mean_overlap))
         entry["scale"].append(tracked_scale(result.boxes, spec.sequence))
         entry["lost_at"].append(None if lost is None else lost / len(result.boxes))
+        entry["shrunk_at"].append(None if shrunk is None else shrunk / len(result.boxes))
     return table
 
 
@@ -165,25 +170,29 @@ def scales_of(measures: dict) -> dict:
 SCALE_SHARE, COLLAPSED_BELOW = 0.25, 0.7
 
 
-def tracked_scale(boxes, sequence, share: float = SCALE_SHARE) -> float:
-    """The median of sqrt(box area / true area) over the last ``share`` of the annotated
-    frames (frame 0 excluded): below 1 the box is smaller than the target.
+def scale_ratios(boxes, sequence) -> tuple[np.ndarray, np.ndarray]:
+    """(frames (n,), sqrt(box area / true area) (n,)) on the annotated frames (frame 0 excluded):
+    below 1 the box is smaller than the target.
 
     Parameters
     ----------
     boxes : (n_frames, 4) float
         1-based OTB boxes from frame 0.
     """
-    import math
-
-    evaluation = score(boxes, sequence)
-    frames = np.asarray(evaluation.frames)
-    if frames.size == 0:
-        return math.nan
+    frames = np.asarray(score(boxes, sequence).frames, dtype=np.int64)
     truth = np.asarray(sequence.groundtruth, dtype=np.float64)[frames]
     predicted = np.asarray(boxes, dtype=np.float64)[frames]
     with np.errstate(invalid="ignore", divide="ignore"):
-        ratio = np.sqrt(np.abs(predicted[:, 2] * predicted[:, 3]) / (truth[:, 2] * truth[:, 3]))
+        return frames, np.sqrt(np.abs(predicted[:, 2] * predicted[:, 3]) / (truth[:, 2] * truth[:, 3]))
+
+
+def tracked_scale(boxes, sequence, share: float = SCALE_SHARE) -> float:
+    """The median of :func:`scale_ratios` over the last ``share`` of the annotated frames."""
+    import math
+
+    _, ratio = scale_ratios(boxes, sequence)
+    if ratio.size == 0:
+        return math.nan
     tail = ratio[-max(1, math.ceil(share * len(ratio))):]
     return float(np.nanmedian(tail)) if np.isfinite(tail).any() else math.nan
 
@@ -192,6 +201,24 @@ def collapsed(scales: dict, names) -> list[str]:
     """The targets among ``names`` whose median over seeds of :func:`tracked_scale` is below
     :data:`COLLAPSED_BELOW`; ``scales`` maps a target to its per-seed scales."""
     return [n for n in names if n in scales and np.nanmedian(scales[n]) < COLLAPSED_BELOW]
+
+
+def collapse_after_loss(measures: dict, names) -> dict:
+    """{collapsed target (:func:`collapsed`): (runs whose scale fell only after the loss of lock,
+    runs whose tracked scale is below :data:`COLLAPSED_BELOW`)}.
+
+    A run's scale fell after the loss when its lock was lost (``lost_at``) no later than its
+    scale first stayed low (``shrunk_at``): the box shrank on whatever it followed once off the
+    target. The other collapsed runs shrank while they held it.
+    """
+    found = {}
+    for name in collapsed(scales_of(measures), names):
+        entry = measures[name]
+        low = [i for i, s in enumerate(entry["scale"]) if s < COLLAPSED_BELOW]
+        after = [i for i in low if entry["lost_at"][i] is not None
+                 and (entry["shrunk_at"][i] is None or entry["lost_at"][i] <= entry["shrunk_at"][i])]
+        found[name] = (len(after), len(low))
+    return found
 
 
 #: A run "lost early" when lock is lost (:func:`experiments.shared.lock_lost_at`)
@@ -483,6 +510,7 @@ def main(argv=None) -> int:
     attribute_table, losses = None, None
     if real:
         losses = {label: {"collapsed": collapsed(scales_of(measures), names),
+                          "collapse_after_loss": collapse_after_loss(measures, names),
                           "lost_early": early_losses(measures, names)}
                   for label, names in groups.items() if label != "synthetic suite"}
         if attribute_folder is not None:
@@ -501,6 +529,11 @@ def main(argv=None) -> int:
         print(f"config on {title}: tracked scale below {COLLAPSED_BELOW} over the last quarter on "
               f"{len(found['collapsed'])} ({', '.join(found['collapsed']) or 'none'}); lock lost within the first "
               f"{EARLY_SHARE:.0%} on {len(found['lost_early'])} ({', '.join(found['lost_early']) or 'none'})")
+        if found["collapse_after_loss"]:
+            order = found["collapse_after_loss"]
+            print(f"  collapsed runs whose scale fell only after the lock was lost: "
+                  f"{sum(a for a, _ in order.values())} of {sum(n for _, n in order.values())} ("
+                  + ", ".join(f"{name} {a}/{n}" for name, (a, n) in order.items()) + ")")
     if attribute_table:
         print(f"mean overlap by OTB attribute ({attribute_folder}):")
         print(format_attribute_means(attribute_table, list(columns)))

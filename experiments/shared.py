@@ -4,7 +4,7 @@ formatting (:mod:`experiments.tables`): no script imports another script.
 - :func:`plain_params`: lambda = beta = 0 (Fig. 4's red line, the ablations' plain row);
 - :data:`TRIAL_VALUES`: the trial value of each numeric extension (the ablations' rows, the
   bench's generative-term row);
-- :func:`blocks`, :data:`ON_TARGET_IOU`, :func:`lock_lost_at`: the sequence blocks and the
+- :func:`blocks`, :data:`ON_TARGET_IOU`, :func:`lock_lost_at` (:func:`first_run_below`): the sequence blocks and the
   loss-of-lock and on-target rules of the failure measures (the failure mechanisms, the
   oracle gate, the scale likelihood, the development evaluation);
 - :data:`STATS_SYNTHETIC_BUDGET`, :data:`STATS_REAL_BUDGET`, :func:`stats_runs`: the recorded
@@ -66,7 +66,13 @@ def lock_lost_at(overlaps, frames, iou: float = LOST_IOU, run: int = LOST_RUN) -
     int or None
         That frame's index, or None when no such run exists.
     """
-    low = np.asarray(overlaps, dtype=np.float64) < iou
+    return first_run_below(overlaps, frames, iou, run)
+
+
+def first_run_below(values, frames, below: float, run: int = LOST_RUN) -> int | None:
+    """The first of ``frames`` (n,) that starts ``run`` consecutive ``values`` (n,) below ``below``,
+    or None (:func:`lock_lost_at` on IoU; the development evaluation on the tracked scale)."""
+    low = np.asarray(values, dtype=np.float64) < below
     if low.size < run:
         return None
     # Windows of `run` consecutive entries that are all low: a moving sum equal to `run`.

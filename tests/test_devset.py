@@ -202,6 +202,33 @@ def test_tracked_scale_is_the_median_over_the_last_quarter():
     assert devset.collapsed({"t": [0.5, 0.6, 0.9], "u": [0.8, 0.9, 0.5]}, ["t", "u"]) == ["t"]
 
 
+def test_a_collapse_is_told_apart_from_a_box_that_shrank_after_the_loss():
+    class Truth:
+        """A 40-frame target that stays put (what score() and scale_ratios() read)."""
+        name = "t"
+        groundtruth = np.tile([100.0, 100.0, 40.0, 40.0], (41, 1))
+
+        def __len__(self):
+            return 41
+
+    held = np.tile([100.0, 100.0, 40.0, 40.0], (41, 1))
+    shrank_on_target = held.copy()
+    shrank_on_target[10:] = [110.0, 110.0, 20.0, 20.0]  # half the size, inside the target: IoU 0.25
+    lost_then_shrank = held.copy()
+    lost_then_shrank[10:] = [300.0, 300.0, 40.0, 40.0]  # off the target at its size ...
+    lost_then_shrank[25:] = [300.0, 300.0, 20.0, 20.0]  # ... then smaller
+    specs = [type("Spec", (), {"sequence": Truth()})() for _ in range(3)]
+    results = [type("Result", (), {"boxes": b})() for b in (shrank_on_target, lost_then_shrank, held)]
+    measures = devset.run_measures(results, specs)["t"]
+    assert measures["lost_at"] == [None, 10 / 41, None]
+    assert measures["shrunk_at"] == [10 / 41, 25 / 41, None]
+    assert measures["scale"] == [pytest.approx(0.5), pytest.approx(0.5), pytest.approx(1.0)]
+    # Collapsed (median scale 0.5): one run shrank while it held the target, one after it lost it.
+    assert devset.collapse_after_loss({"t": measures}, ["t"]) == {"t": (1, 2)}
+    measures["shrunk_at"][1] = 5 / 41  # had it shrunk first, neither counts as shrunk after the loss
+    assert devset.collapse_after_loss({"t": measures}, ["t"]) == {"t": (0, 2)}
+
+
 def test_a_baseline_is_carried_from_another_code_version_only_when_bit_identical(tmp_path):
     from experiments import screen
     from experiments.grid import specs_for
