@@ -186,38 +186,37 @@ def test_balanced_split_by_hand():
     assert development_split.split_cost(in_a, difficulty, flags) < 0.1
 
 
-def test_tracked_scale_is_the_median_over_the_last_quarter():
+def _still_target(box, n_frames):
+    """A target that stays at ``box`` for ``n_frames``: just what score(), tracked_scale() and
+    scale_ratios() read of a sequence."""
     class Truth:
-        """Just what score() and tracked_scale() read of a sequence."""
         name = "t"
-        groundtruth = np.tile([10.0, 10.0, 20.0, 20.0], (9, 1))
+        groundtruth = np.tile(np.asarray(box, dtype=np.float64), (n_frames, 1))
 
         def __len__(self):
-            return 9
+            return n_frames
 
+    return Truth()
+
+
+def test_tracked_scale_is_the_median_over_the_last_quarter():
+    truth = _still_target([10.0, 10.0, 20.0, 20.0], 9)
     boxes = np.tile([10.0, 10.0, 20.0, 20.0], (9, 1))
     boxes[7:] = [10.0, 10.0, 10.0, 10.0]  # the last two of the 8 scored frames at half the size
-    assert devset.tracked_scale(boxes, Truth()) == pytest.approx(0.5)
-    assert devset.tracked_scale(boxes, Truth(), share=1.0) == pytest.approx(1.0)
+    assert devset.tracked_scale(boxes, truth) == pytest.approx(0.5)
+    assert devset.tracked_scale(boxes, truth, share=1.0) == pytest.approx(1.0)
     assert devset.collapsed({"t": [0.5, 0.6, 0.9], "u": [0.8, 0.9, 0.5]}, ["t", "u"]) == ["t"]
 
 
 def test_a_collapse_is_told_apart_from_a_box_that_shrank_after_the_loss():
-    class Truth:
-        """A 40-frame target that stays put (what score() and scale_ratios() read)."""
-        name = "t"
-        groundtruth = np.tile([100.0, 100.0, 40.0, 40.0], (41, 1))
-
-        def __len__(self):
-            return 41
-
+    truth = _still_target([100.0, 100.0, 40.0, 40.0], 41)
     held = np.tile([100.0, 100.0, 40.0, 40.0], (41, 1))
     shrank_on_target = held.copy()
     shrank_on_target[10:] = [110.0, 110.0, 20.0, 20.0]  # half the size, inside the target: IoU 0.25
     lost_then_shrank = held.copy()
     lost_then_shrank[10:] = [300.0, 300.0, 40.0, 40.0]  # off the target at its size ...
     lost_then_shrank[25:] = [300.0, 300.0, 20.0, 20.0]  # ... then smaller
-    specs = [type("Spec", (), {"sequence": Truth()})() for _ in range(3)]
+    specs = [type("Spec", (), {"sequence": truth})() for _ in range(3)]
     results = [type("Result", (), {"boxes": b})() for b in (shrank_on_target, lost_then_shrank, held)]
     measures = devset.run_measures(results, specs)["t"]
     assert measures["lost_at"] == [None, 10 / 41, None]
