@@ -139,11 +139,11 @@ def run_measures(results, specs) -> dict:
     for spec, result in zip(specs, results):
         evaluation = score(result.boxes, spec.sequence)
         lost = lock_lost_at(evaluation.overlaps, evaluation.frames)
-        frames, ratios = scale_ratios(result.boxes, spec.sequence)
+        frames, ratios = scale_ratios(result.boxes, spec.sequence, evaluation.frames)
         shrunk = first_run_below(ratios, frames, COLLAPSED_BELOW)
         entry = table.setdefault(spec.sequence.name, {"overlap": [], "scale": [], "lost_at": [], "shrunk_at": []})
         entry["overlap"].append(float(evaluation.mean_overlap))
-        entry["scale"].append(tracked_scale(result.boxes, spec.sequence))
+        entry["scale"].append(tail_scale(ratios))
         entry["lost_at"].append(None if lost is None else lost / len(result.boxes))
         entry["shrunk_at"].append(None if shrunk is None else shrunk / len(result.boxes))
     return table
@@ -170,7 +170,7 @@ def scales_of(measures: dict) -> dict:
 SCALE_SHARE, COLLAPSED_BELOW = 0.25, 0.7
 
 
-def scale_ratios(boxes, sequence) -> tuple[np.ndarray, np.ndarray]:
+def scale_ratios(boxes, sequence, frames=None) -> tuple[np.ndarray, np.ndarray]:
     """(frames (n,), sqrt(box area / true area) (n,)) on the annotated frames (frame 0 excluded):
     below 1 the box is smaller than the target.
 
@@ -178,8 +178,12 @@ def scale_ratios(boxes, sequence) -> tuple[np.ndarray, np.ndarray]:
     ----------
     boxes : (n_frames, 4) float
         1-based OTB boxes from frame 0.
+    frames : (n,) int, optional
+        The annotated frames, where the caller has scored the boxes already (else scored here).
     """
-    frames = np.asarray(score(boxes, sequence).frames, dtype=np.int64)
+    if frames is None:
+        frames = score(boxes, sequence).frames
+    frames = np.asarray(frames, dtype=np.int64)
     truth = np.asarray(sequence.groundtruth, dtype=np.float64)[frames]
     predicted = np.asarray(boxes, dtype=np.float64)[frames]
     with np.errstate(invalid="ignore", divide="ignore"):
@@ -188,9 +192,13 @@ def scale_ratios(boxes, sequence) -> tuple[np.ndarray, np.ndarray]:
 
 def tracked_scale(boxes, sequence, share: float = SCALE_SHARE) -> float:
     """The median of :func:`scale_ratios` over the last ``share`` of the annotated frames."""
+    return tail_scale(scale_ratios(boxes, sequence)[1], share)
+
+
+def tail_scale(ratio: np.ndarray, share: float = SCALE_SHARE) -> float:
+    """The median of the last ``share`` of ``ratio`` (n,) (:func:`scale_ratios`); NaN if none is finite."""
     import math
 
-    _, ratio = scale_ratios(boxes, sequence)
     if ratio.size == 0:
         return math.nan
     tail = ratio[-max(1, math.ceil(share * len(ratio))):]
