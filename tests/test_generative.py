@@ -161,3 +161,24 @@ def test_the_paper_preset_has_no_generative_term():
 def test_bad_values_name_the_parameter(changes, name):
     with pytest.raises(ParameterError, match=name):
         TrackerParams(**changes)
+
+
+@pytest.mark.parametrize("weak_count, expected", [(0, [40, 40]), (60, [40, 60])])
+def test_weakly_recognised_frames_code_more_candidates(sequence, weak_count, expected):
+    """``generative_candidates_weak`` widens the term's reach only where the most confident
+    candidate's eps_pos is at least ``redetect_trigger``; 0 leaves ``generative_candidates``."""
+    tracker, _ = _boxes(sequence, generative_candidates_weak=weak_count)
+    coded = tracker.last_coding
+    seen = []
+    similarity = tracker.generative.similarity
+
+    def counting(patches):
+        seen.append(len(patches))
+        return similarity(patches)
+
+    tracker.generative.similarity = counting
+    held = np.zeros(len(coded.patches))
+    weak = np.full(len(coded.patches), tracker.params.redetect_trigger)
+    tracker._generative_similarity(coded.patches, coded.log_confidence, held)
+    tracker._generative_similarity(coded.patches, coded.log_confidence, weak)
+    assert seen == expected

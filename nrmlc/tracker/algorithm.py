@@ -416,7 +416,7 @@ class NRMLCTracker:
         log_confidence = sign * p.alpha * (error_positive - error_negative)
         similarity = None
         if self.generative is not None:
-            similarity = self._generative_similarity(candidates, log_confidence)
+            similarity = self._generative_similarity(candidates, log_confidence, error_positive)
             term = p.generative_weight * np.log(np.maximum(similarity, 1e-300))
             # Only where the positives take part in the code: where the discriminative
             # likelihood is flat (the target hidden or lost), the term would hold the cloud
@@ -429,10 +429,16 @@ class NRMLCTracker:
                       error_positive=error_positive, error_negative=error_negative,
                       log_confidence=log_confidence, similarity=similarity)
 
-    def _generative_similarity(self, candidates: np.ndarray, log_confidence: np.ndarray) -> np.ndarray:
+    def _generative_similarity(self, candidates: np.ndarray, log_confidence: np.ndarray,
+                               error_positive: np.ndarray) -> np.ndarray:
         """The generative term's similarity (n,) of each candidate: the ``generative_candidates``
-        most confident are coded locally, the others get the lowest of their similarities."""
-        top = np.argsort(-log_confidence, kind="stable")[:self.params.generative_candidates]
+        most confident (``generative_candidates_weak`` where the most confident is only weakly
+        recognised) are coded locally, the others get the lowest of their similarities."""
+        p = self.params
+        count = p.generative_candidates
+        if p.generative_candidates_weak and error_positive[np.argmax(log_confidence)] >= p.redetect_trigger:
+            count = p.generative_candidates_weak
+        top = np.argsort(-log_confidence, kind="stable")[:count]
         local = self.generative.similarity(candidates[top])["similarity"]
         similarity = np.full(len(candidates), local.min())
         similarity[top] = local

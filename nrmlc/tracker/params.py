@@ -201,6 +201,13 @@ class TrackerParams:
         Only this many most confident candidates are coded locally (SCM codes all); the
         others get the lowest of their similarities. *Ours*: 20 (150 did no better on the
         development sequences and codes 7.5 times the local patches; round 14).
+    generative_candidates_weak : int
+        On a frame whose most confident candidate is only weakly recognised (its eps_pos at least
+        ``redetect_trigger``, the frames the weak search runs on), this many candidates are coded
+        locally instead of ``generative_candidates`` (0: off, the default and the ``paper``
+        preset's). Round 60: 60 candidates on every frame gained Man (the light switched on) at
+        ten seeds of ten and lost Car11's held lock at five; this keeps the reach for the weak
+        frames (round 61, branch ``round61``).
     generative_neighbours, generative_lam : int, float
         The local coder: approximated LLC on this many nearest atoms with this ridge (SCM
         codes with a lasso).
@@ -267,6 +274,7 @@ class TrackerParams:
     # -- generative term (ours, after SCM; nrmlc.tracker.generative) ----------------------
     generative_weight: float = bounded(10.0, 0, 1000)
     generative_candidates: int = bounded(20, 1, MAX_PARTICLES)
+    generative_candidates_weak: int = bounded(0, 0, MAX_PARTICLES)
     generative_neighbours: int = bounded(5, 1, N_ATOMS)
     generative_lam: float = bounded(1.0, 0, 1000, low_open=True)
     generative_interval: int = bounded(5, 1)
@@ -442,7 +450,8 @@ SECTIONS: dict[str, tuple[str, ...]] = {
                 "occlusion_max_negative", "coefficient_tolerance"),
     "redetection": ("redetect_count", "redetect_factor", "redetect_accept", "redetect_trigger",
                     "redetect_weak_radius", "redetect_weak_accept"),
-    "generative": ("generative_weight", "generative_candidates", "generative_neighbours", "generative_lam",
+    "generative": ("generative_weight", "generative_candidates", "generative_candidates_weak",
+                   "generative_neighbours", "generative_lam",
                    "generative_interval", "generative_step"),
 }
 
