@@ -26,6 +26,7 @@ the same numbers.
 from __future__ import annotations
 
 import argparse
+import math
 import sys
 from pathlib import Path
 
@@ -197,8 +198,6 @@ def tracked_scale(boxes, sequence, share: float = SCALE_SHARE) -> float:
 
 def tail_scale(ratio: np.ndarray, share: float = SCALE_SHARE) -> float:
     """The median of the last ``share`` of ``ratio`` (n,) (:func:`scale_ratios`); NaN if none is finite."""
-    import math
-
     if ratio.size == 0:
         return math.nan
     tail = ratio[-max(1, math.ceil(share * len(ratio))):]
