@@ -1,0 +1,112 @@
+"""Offline: two configurations' runs side by side, the output on each frame chosen by eps_pos*.
+
+``python -m experiments.expert_choice --seeds 335-344 --partner update_interval=1 [--memory 0.95]``
+
+For every development target and seed, the default's run and a partner configuration's run (from
+the run cache, computed where missing) are joined frame by frame: each run keeps a running average
+of its estimate's eps_pos* (``average = memory * average + (1 - memory) * eps_pos*``, from 0 at the
+first frame), and the output is the partner's box where its average is strictly lower, the
+default's elsewhere. The choice is causal and changes neither run, so it measures, before anything
+is built, what a second expert beside the tracker would give (rounds 63 and 64,
+docs/findings/round-63-a-second-expert.md). It prints, as ``experiments.screen`` does, the paired
+difference to the default on half A, half B and the synthetic suite with the adoption rule's
+verdict, for the partner alone and for the choice. It chooses nothing by itself: a second expert
+is judged by a screen of the tracker at seeds the study did not use.
+"""
+from __future__ import annotations
+
+import argparse
+import sys
+
+import numpy as np
+
+from experiments.devset import (development_sequences, groups_of, overlaps_of, parse_roots, run_measures,
+                                scales_of, selected_names, warn_few_seeds)
+from experiments.grid import specs_for
+from experiments.screen import _report, parse_variant, screen_document, screen_row
+from nrmlc.benchmark import parse_seeds
+from nrmlc.errors import NrmlcError
+from nrmlc.runner import DEFAULT_CACHE, RunCache
+from nrmlc.tracker.loop import TrackResult
+from nrmlc.tracker.params import TrackerParams
+
+
+def chosen_boxes(own: TrackResult, partner: TrackResult, memory: float) -> tuple[np.ndarray, np.ndarray]:
+    """The frame-by-frame choice between two runs of one sequence.
+
+    Parameters
+    ----------
+    own, partner : TrackResult
+        Runs of the same frames, with ``diagnostics["error_positive"]`` (n_frames,).
+    memory : float
+        The weight of the past in each run's running average of eps_pos*, in [0, 1).
+
+    Returns
+    -------
+    boxes : (n_frames, 4) float64
+        The partner's box where its average is strictly lower, the own one elsewhere (frame 0:
+        the own, the initial box of both).
+    chosen : (n_frames,) int64
+        1 where the partner's box is output, 0 elsewhere.
+    """
+    if len(own.boxes) != len(partner.boxes):
+        raise NrmlcError(f"the two runs have {len(own.boxes)} and {len(partner.boxes)} frames")
+    errors = np.stack([own.diagnostics["error_positive"], partner.diagnostics["error_positive"]], axis=1)
+    average = np.zeros(2)
+    chosen = np.zeros(len(own.boxes), dtype=np.int64)
+    for index in range(1, len(errors)):
+        average = memory * average + (1.0 - memory) * errors[index]
+        chosen[index] = average[1] < average[0]
+    return np.where(chosen[:, None] == 1, partner.boxes, own.boxes), chosen
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--data", default=None, help="data root(s) joined by ':' (as experiments.devset)")
+    parser.add_argument("--seeds", default="0-2", help="seeds, e.g. 0-4 or 0,3,5")
+    parser.add_argument("--synthetic", type=int, default=6, metavar="N")
+    parser.add_argument("--half", choices=("A", "B", "all"), default="all")
+    parser.add_argument("--sequences", default=None, help="a subset of the development targets ('': none)")
+    parser.add_argument("--max-frames", type=int, default=None, help="track only the first N frames")
+    parser.add_argument("--partner", required=True, metavar="PARAM=VALUE,...",
+                        help="the partner configuration: changes of the default")
+    parser.add_argument("--memory", type=float, default=0.95, help="weight of the past in the running average")
+    parser.add_argument("--jobs", type=int, default=None)
+    parser.add_argument("--cache", default=str(DEFAULT_CACHE))
+    parser.add_argument("--json", default=None)
+    parser.add_argument("--markdown", default=None)
+    args = parser.parse_args(argv)
+    try:
+        if not 0.0 <= args.memory < 1.0:
+            raise NrmlcError(f"--memory must be in [0, 1), got {args.memory}")
+        seeds = parse_seeds(args.seeds)
+        warn_few_seeds(args.seeds, seeds)
+        partner = parse_variant("partner", args.partner, "default")
+        names = selected_names(args.half, args.sequences)
+        sequences = development_sequences(parse_roots(args.data) if names else None, names, args.synthetic)
+    except NrmlcError as error:
+        print(f"error: {error}", file=sys.stderr)
+        return 2
+    cache = RunCache(args.cache)
+    groups = groups_of(sequences)
+    real = [n for label, members in groups.items() if label != "synthetic suite" for n in members]
+    if real:
+        groups["all real"] = real
+    own_specs = specs_for(sequences, TrackerParams(), seeds, n_frames=args.max_frames)
+    partner_specs = specs_for(sequences, partner, seeds, n_frames=args.max_frames)
+    own_runs = cache.run(own_specs, jobs=args.jobs)
+    partner_runs = cache.run(partner_specs, jobs=args.jobs)
+    choices = [TrackResult(chosen_boxes(own, other, args.memory)[0], own.states)
+               for own, other in zip(own_runs, partner_runs)]
+    measures = [run_measures(runs, own_specs) for runs in (own_runs, partner_runs, choices)]
+    base = overlaps_of(measures[0])
+    rows = [screen_row(name, params, overlaps_of(m), scales_of(m), base, groups, seeds)
+            for name, params, m in (("partner alone", partner.as_dict(), measures[1]),
+                                    (f"the choice (memory {args.memory:g})", partner.as_dict(), measures[2]))]
+    document = screen_document(TrackerParams().as_dict(), base, scales_of(measures[0]), seeds, groups, rows)
+    print(f"default and partner ({args.partner}), seeds {args.seeds}")
+    return _report(args, document)
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,50 @@
+"""The offline frame-by-frame choice between two runs (experiments/expert_choice.py)."""
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from experiments import expert_choice
+from nrmlc.errors import NrmlcError
+from nrmlc.tracker.loop import TrackResult
+
+
+def _run(errors, offset):
+    n = len(errors)
+    boxes = np.tile(np.array([10.0, 10.0, 20.0, 20.0]), (n, 1)) + offset
+    return TrackResult(boxes, np.zeros((n, 6)), {"error_positive": np.array([np.nan] + list(errors[1:]))})
+
+
+def test_the_partner_is_output_only_where_its_average_is_strictly_lower():
+    own = _run([0, 0.1, 0.1, 0.5, 0.5, 0.1], 0.0)
+    partner = _run([0, 0.2, 0.1, 0.1, 0.1, 0.1], 1.0)
+    boxes, chosen = expert_choice.chosen_boxes(own, partner, 0.0)
+    np.testing.assert_array_equal(chosen, [0, 0, 0, 1, 1, 0])  # a tie keeps the own box
+    np.testing.assert_array_equal(boxes, np.where(chosen[:, None] == 1, partner.boxes, own.boxes))
+    # With memory the partner needs its better frames to outweigh its first worse one:
+    # averages (own, partner) at 0.5: (0.05, 0.1), (0.075, 0.1), (0.2875, 0.1), ...
+    _, chosen = expert_choice.chosen_boxes(own, partner, 0.5)
+    np.testing.assert_array_equal(chosen, [0, 0, 0, 1, 1, 1])
+
+
+def test_runs_of_other_lengths_are_refused():
+    with pytest.raises(NrmlcError, match="frames"):
+        expert_choice.chosen_boxes(_run([0, 0.1], 0.0), _run([0, 0.1, 0.2], 0.0), 0.5)
+
+
+def test_the_study_reports_the_partner_and_the_choice(tmp_path, capsys):
+    out = tmp_path / "choice.json"
+    code = expert_choice.main(["--sequences", "", "--synthetic", "1", "--seeds", "0", "--max-frames", "8",
+                               "--partner", "translation_floor=0", "--cache", str(tmp_path / "cache"),
+                               "--json", str(out), "--jobs", "1"])
+    assert code == 0
+    names = [row["name"] for row in json.loads(out.read_text())["variants"]]
+    assert names == ["partner alone", "the choice (memory 0.95)"]
+    assert "the choice" in capsys.readouterr().out
+
+
+def test_a_memory_outside_its_range_is_one_line(capsys):
+    assert expert_choice.main(["--partner", "translation_floor=0", "--memory", "1"]) == 2
+    assert "--memory" in capsys.readouterr().err
