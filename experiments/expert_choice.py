@@ -20,11 +20,10 @@ import sys
 
 import numpy as np
 
-from experiments.devset import (development_sequences, groups_of, overlaps_of, parse_roots, run_measures,
-                                scales_of, selected_names, warn_few_seeds)
+from experiments.devset import overlaps_of, run_measures, scales_of
 from experiments.grid import specs_for
-from experiments.screen import _report, parse_variant, screen_document, screen_row
-from nrmlc.benchmark import parse_seeds
+from experiments.screen import (_report, add_target_options, chosen_targets, parse_variant, screen_document,
+                                screen_row)
 from nrmlc.errors import NrmlcError
 from nrmlc.runner import DEFAULT_CACHE, RunCache
 from nrmlc.tracker.loop import TrackResult
@@ -62,12 +61,7 @@ def chosen_boxes(own: TrackResult, partner: TrackResult, memory: float) -> tuple
 
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("--data", default=None, help="data root(s) joined by ':' (as experiments.devset)")
-    parser.add_argument("--seeds", default="0-2", help="seeds, e.g. 0-4 or 0,3,5")
-    parser.add_argument("--synthetic", type=int, default=6, metavar="N")
-    parser.add_argument("--half", choices=("A", "B", "all"), default="all")
-    parser.add_argument("--sequences", default=None, help="a subset of the development targets ('': none)")
-    parser.add_argument("--max-frames", type=int, default=None, help="track only the first N frames")
+    add_target_options(parser)
     parser.add_argument("--partner", required=True, metavar="PARAM=VALUE,...",
                         help="the partner configuration: changes of the default")
     parser.add_argument("--memory", type=float, default=0.95, help="weight of the past in the running average")
@@ -79,19 +73,12 @@ def main(argv=None) -> int:
     try:
         if not 0.0 <= args.memory < 1.0:
             raise NrmlcError(f"--memory must be in [0, 1), got {args.memory}")
-        seeds = parse_seeds(args.seeds)
-        warn_few_seeds(args.seeds, seeds)
         partner = parse_variant("partner", args.partner, "default")
-        names = selected_names(args.half, args.sequences)
-        sequences = development_sequences(parse_roots(args.data) if names else None, names, args.synthetic)
+        seeds, sequences, groups = chosen_targets(args)
     except NrmlcError as error:
         print(f"error: {error}", file=sys.stderr)
         return 2
     cache = RunCache(args.cache)
-    groups = groups_of(sequences)
-    real = [n for label, members in groups.items() if label != "synthetic suite" for n in members]
-    if real:
-        groups["all real"] = real
     own_specs = specs_for(sequences, TrackerParams(), seeds, n_frames=args.max_frames)
     partner_specs = specs_for(sequences, partner, seeds, n_frames=args.max_frames)
     own_runs = cache.run(own_specs, jobs=args.jobs)

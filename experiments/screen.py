@@ -91,6 +91,16 @@ def baseline_at_version(cache: RunCache, specs: list, version: str, jobs) -> lis
     return other.run(specs, jobs=jobs)
 
 
+def screen_groups(sequences) -> dict:
+    """:func:`experiments.devset.groups_of` with the real targets of all groups together as
+    ``"all real"`` (when there are any)."""
+    groups = groups_of(sequences)
+    real = [n for label, names in groups.items() if label != "synthetic suite" for n in names]
+    if real:
+        groups["all real"] = real
+    return groups
+
+
 def collapsed_by_half(scales: dict, groups: dict) -> dict:
     """{'A': [...], 'B': [...]}: the collapsed targets (:func:`experiments.devset.collapsed`) per half."""
     return {label: collapsed(scales, names) for label, names in groups.items() if label in ("A", "B")}
@@ -172,14 +182,29 @@ def format_screen(rows: list[dict]) -> str:
     return "\n".join(lines)
 
 
-def main(argv=None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+def add_target_options(parser: argparse.ArgumentParser) -> None:
+    """The options that pick the targets, seeds and frames (``screen``, ``expert_choice``)."""
     parser.add_argument("--data", default=None, help="data root(s) joined by ':' (as experiments.devset)")
     parser.add_argument("--seeds", default="0-2", help="seeds, e.g. 0-2 or 0,3,5; a number alone is that one seed")
     parser.add_argument("--synthetic", type=int, default=6, metavar="N")
     parser.add_argument("--half", choices=("A", "B", "all"), default="all")
     parser.add_argument("--sequences", default=None, help="a subset of the development targets ('': none)")
     parser.add_argument("--max-frames", type=int, default=None, help="track only the first N frames")
+
+
+def chosen_targets(args) -> tuple[list, list, dict]:
+    """(seeds, sequences, their :func:`screen_groups`) that :func:`add_target_options`'s options
+    name; raises NrmlcError."""
+    seeds = parse_seeds(args.seeds)
+    warn_few_seeds(args.seeds, seeds)
+    names = selected_names(args.half, args.sequences)
+    sequences = development_sequences(parse_roots(args.data) if names else None, names, args.synthetic)
+    return seeds, sequences, screen_groups(sequences)
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    add_target_options(parser)
     parser.add_argument("--baseline-preset", default="default")
     parser.add_argument("--baseline", default="", metavar="PARAM=VALUE,...", help="changes of the baseline")
     parser.add_argument("--variant", nargs=2, action="append", default=[], metavar=("NAME", "CHANGES"))
@@ -198,20 +223,13 @@ def main(argv=None) -> int:
     if args.pool:
         return _pool(args)
     try:
-        seeds = parse_seeds(args.seeds)
-        warn_few_seeds(args.seeds, seeds)
         baseline = parse_variant("baseline", args.baseline, args.baseline_preset)
         variants = [(name, parse_variant(name, text, args.baseline_preset)) for name, text in args.variant]
-        names = selected_names(args.half, args.sequences)
-        sequences = development_sequences(parse_roots(args.data) if names else None, names, args.synthetic)
+        seeds, sequences, groups = chosen_targets(args)
     except NrmlcError as error:
         print(f"error: {error}", file=sys.stderr)
         return 2
     cache = RunCache(args.cache)
-    groups = groups_of(sequences)
-    real = [n for label, names in groups.items() if label != "synthetic suite" for n in names]
-    if real:
-        groups["all real"] = real
     batches = [specs_for(sequences, params, seeds, n_frames=args.max_frames) for _, params in [("baseline", baseline)] + variants]
     # One configuration at a time (the baseline first), so that an interrupted screen has
     # finished whole configurations, which a rerun reads from the cache.
