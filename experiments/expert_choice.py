@@ -22,10 +22,10 @@ import numpy as np
 
 from experiments.devset import overlaps_of, run_measures, scales_of
 from experiments.grid import specs_for
-from experiments.screen import (_report, add_target_options, chosen_targets, parse_variant, screen_document,
-                                screen_row)
+from experiments.screen import (_report, add_run_options, add_target_options, chosen_targets, parse_variant,
+                                screen_document, screen_row)
 from nrmlc.errors import NrmlcError
-from nrmlc.runner import DEFAULT_CACHE, RunCache
+from nrmlc.runner import RunCache
 from nrmlc.tracker.loop import TrackResult
 from nrmlc.tracker.params import TrackerParams
 
@@ -65,10 +65,7 @@ def main(argv=None) -> int:
     parser.add_argument("--partner", required=True, metavar="PARAM=VALUE,...",
                         help="the partner configuration: changes of the default")
     parser.add_argument("--memory", type=float, default=0.95, help="weight of the past in the running average")
-    parser.add_argument("--jobs", type=int, default=None)
-    parser.add_argument("--cache", default=str(DEFAULT_CACHE))
-    parser.add_argument("--json", default=None)
-    parser.add_argument("--markdown", default=None)
+    add_run_options(parser)
     args = parser.parse_args(argv)
     try:
         if not 0.0 <= args.memory < 1.0:

@@ -192,6 +192,14 @@ def add_target_options(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--max-frames", type=int, default=None, help="track only the first N frames")
 
 
+def add_run_options(parser: argparse.ArgumentParser) -> None:
+    """The options for the runs and the report: workers, run cache, ``--json``, ``--markdown``."""
+    parser.add_argument("--jobs", type=int, default=None)
+    parser.add_argument("--cache", default=str(DEFAULT_CACHE))
+    parser.add_argument("--json", default=None)
+    parser.add_argument("--markdown", default=None)
+
+
 def chosen_targets(args) -> tuple[list, list, dict]:
     """(seeds, sequences, their :func:`screen_groups`) that :func:`add_target_options`'s options
     name; raises NrmlcError."""
@@ -213,10 +221,7 @@ def main(argv=None) -> int:
     parser.add_argument("--cached-only", action="store_true",
                         help="compute no variant: report those whose runs are all in the cache and skip the "
                              "rest (the baseline's missing runs are still computed)")
-    parser.add_argument("--jobs", type=int, default=None)
-    parser.add_argument("--cache", default=str(DEFAULT_CACHE))
-    parser.add_argument("--json", default=None)
-    parser.add_argument("--markdown", default=None)
+    add_run_options(parser)
     parser.add_argument("--pool", default=None, metavar="A.json,B.json",
                         help="run nothing: join these screens' JSONs (disjoint seeds) and judge over all seeds")
     args = parser.parse_args(argv)
