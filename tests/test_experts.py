@@ -23,13 +23,14 @@ def _run(sequence, seed=0, **changes):
     return track_sequence(sequence, TrackerParams(**{**SETTINGS, **changes}), seed=seed)
 
 
-@pytest.mark.parametrize("memory", [0.0, 0.95])
-def test_the_output_is_the_expert_with_the_lower_average_error(sequence, memory):
+@pytest.mark.parametrize("kind, memory", [("lineage_noise", 0.0), ("lineage_noise", 0.95), ("every_frame", 0.95)])
+def test_the_output_is_the_expert_with_the_lower_average_error(sequence, kind, memory):
     """The oracle: the two experts run apart as single trackers, and the output chosen frame by
     frame from their boxes by the running average of eps_pos*."""
-    pair = _run(sequence, second_expert="lineage_noise", expert_memory=memory)
+    pair = _run(sequence, second_expert=kind, expert_memory=memory)
     own = _run(sequence)
-    partner = _run(sequence, translation_noise="pixels", motion_sigmas=LINEAGE_MOTION_SIGMAS)
+    partner = _run(sequence, **(dict(update_interval=1) if kind == "every_frame" else
+                                dict(translation_noise="pixels", motion_sigmas=LINEAGE_MOTION_SIGMAS)))
     errors = np.stack([own.diagnostics["error_positive"], partner.diagnostics["error_positive"]], axis=1)
     average, chosen = np.zeros(2), [0]
     for row in errors[1:]:
@@ -54,6 +55,8 @@ def test_off_is_one_tracker_and_the_partner_has_the_lineage_motion():
     assert partner.replace(translation_noise="relative", motion_sigmas=params.motion_sigmas,
                            second_expert="lineage_noise") == params
     assert params.estimated_bytes() == 2 * TrackerParams().estimated_bytes()
+    learner = TrackerParams(second_expert="every_frame").partner_params()
+    assert learner == TrackerParams(update_interval=1)
 
 
 def test_move_to_moves_both_experts(sequence):

@@ -222,12 +222,13 @@ class TrackerParams:
         patch cancels a gain but not an offset, and an offset turns the target away from its
         positives. Round 36, at seeds 115-119: A +0.020 ± 0.011, B +0.002 ± 0.006, synthetic
         +0.007 ± 0.001 (docs/DEVIATIONS.md).
-    second_expert : {'off', 'lineage_noise'}
-        A second NRMLC tracker beside the first (*ours*; 'off', the paper, runs one). Under
-        'lineage_noise' it has the same parameters but the lineage's motion model (the OTB
-        benchmark's ASLA and IVT runs: ``affsig = [4, 4, 0.01, 0, 0.005, 0]`` in image pixels,
-        :data:`LINEAGE_MOTION_SIGMAS`), its own particles and templates, and the same seed; both
-        track every frame apart, and each frame's output is the estimate of the one whose recent
+    second_expert : {'off', 'lineage_noise', 'every_frame'}
+        A second NRMLC tracker beside the first (*ours*; 'off', the paper, runs one). It has the
+        same parameters and seed but one: under 'lineage_noise' the lineage's motion model (the
+        OTB benchmark's ASLA and IVT runs: ``affsig = [4, 4, 0.01, 0, 0.005, 0]`` in image
+        pixels, :data:`LINEAGE_MOTION_SIGMAS`), under 'every_frame' a template update every
+        frame (``update_interval = 1``). It has its own particles and templates; both track
+        every frame apart, and each frame's output is the estimate of the one whose recent
         eps_pos* (an exponential average, ``expert_memory``) is lower
         (:meth:`nrmlc.tracker.algorithm.NRMLCTracker.update`). It costs twice the time.
     expert_memory : float
@@ -288,7 +289,7 @@ class TrackerParams:
     generative_step: int = bounded(4, 1, LOCAL_SIZE)
 
     # -- a second expert (ours; NRMLCTracker.update) ---------------------------------------
-    second_expert: Literal["off", "lineage_noise"] = "off"
+    second_expert: Literal["off", "lineage_noise", "every_frame"] = "off"
     expert_memory: float = bounded(0.95, 0, 1, high_open=True)
 
     def __post_init__(self) -> None:
@@ -372,8 +373,10 @@ class TrackerParams:
         return float(sum(self.memory_terms().values())) * (1 if self.second_expert == "off" else 2)
 
     def partner_params(self) -> "TrackerParams":
-        """The second expert's parameters (``second_expert``): these with the lineage's motion model,
-        and no expert of its own."""
+        """The second expert's parameters (``second_expert``): these with the lineage's motion model
+        or an update every frame, and no expert of its own."""
+        if self.second_expert == "every_frame":
+            return self.replace(second_expert="off", update_interval=1)
         return self.replace(second_expert="off", translation_noise="pixels", motion_sigmas=LINEAGE_MOTION_SIGMAS)
 
     def _check_memory(self, fail) -> None:
