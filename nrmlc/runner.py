@@ -151,7 +151,8 @@ def frames_tracked(sequence, n_frames: int | None) -> int:
 #: ``paper`` preset's and the default's before round 20; round 51 for the weak-trigger search's
 #: three fields, whose off values are the ``paper`` preset's and the default's before round 51).
 SWITCHES_ADDED_LATER: dict[str, object] = {"translation_floor": 0.0, "brightness": "raw", "redetect_trigger": 0.99,
-                                           "redetect_weak_radius": 100.0, "redetect_weak_accept": 1.0}
+                                           "redetect_weak_radius": 100.0, "redetect_weak_accept": 1.0,
+                                           "second_expert": "off", "expert_memory": 0.95}
 
 
 def params_for_key(params: TrackerParams) -> dict:

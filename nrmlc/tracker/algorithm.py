@@ -22,11 +22,15 @@ Per frame:
    (:mod:`nrmlc.tracker.generative`);
 6. every ``update_interval`` frames, resample the negative templates around the
    estimate and, unless the target is judged occluded (LEN(neg*) too large),
-   add the result to the positive templates when eps_pos* < threshold.
+   add the result to the positive templates when eps_pos* < threshold;
+7. with a second expert (*ours*, ``second_expert``; off in the paper), a second tracker with the
+   lineage's motion model or an update every frame does steps 1-6 on its own, and the frame's
+   output is the estimate of the one whose running average of eps_pos* is lower.
 """
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 import threading
 from dataclasses import dataclass
 
@@ -135,6 +139,9 @@ class FrameResult:
     redetect_searched, redetected : bool
         Whether this frame ran the re-detection search (``redetect_count``), and whether
         its estimate came from it.
+    expert : int
+        Whose estimate this is: 0 the tracker's own, 1 its second expert's
+        (``second_expert``; every field above is then the second expert's).
     """
 
     state: np.ndarray
@@ -156,6 +163,7 @@ class FrameResult:
     updated_positive: bool = False
     redetect_searched: bool = False
     redetected: bool = False
+    expert: int = 0
 
 
 def _exp_or_inf(value: float) -> float:
@@ -212,6 +220,10 @@ class NRMLCTracker:
         self.templates: np.ndarray | None = None
         self.template_gram: np.ndarray | None = None
         self.template_sq_norms: np.ndarray | None = None
+        #: The second expert (``second_expert``), a tracker of its own, and both experts' running
+        #: average of eps_pos* (own, second); None and unused when there is none.
+        self.partner = None if self.params.second_expert == "off" else NRMLCTracker(self.seed, self.params.partner_params())
+        self.expert_errors = np.zeros(2)
         self._busy = threading.Lock()
 
     def __getstate__(self) -> dict:
@@ -300,6 +312,9 @@ class NRMLCTracker:
                                                   p.generative_step)
         self.frame_index = 0
         self.last = None
+        if self.partner is not None:
+            self.partner._init(image, box)
+            self.expert_errors = np.zeros(2)
 
     def update(self, image) -> np.ndarray:
         """Track into the next frame; returns the 1-based ``(x, y, w, h)`` box.
@@ -331,7 +346,22 @@ class NRMLCTracker:
             local = self.generative.similarity(best_patch)
             self.generative.update(local["neighbours"][0], local["codes"][0], float(local["occluded_share"][0]))
         self.last_coding = coding
+        if self.partner is not None:
+            return self._output_of_the_experts(image, result)
         return result.box
+
+    def _output_of_the_experts(self, image, own: FrameResult) -> np.ndarray:
+        """Track ``image`` with the second expert too, and make the output (``last``, the returned
+        box) the estimate of the expert whose average eps_pos* is lower (the own one on a tie).
+        Each expert goes on from its own estimate: the choice changes only what is reported."""
+        self.partner._update(image)
+        memory = self.params.expert_memory
+        errors = np.array([own.error_positive, self.partner.last.error_positive])
+        self.expert_errors = memory * self.expert_errors + (1.0 - memory) * errors
+        if self.expert_errors[1] < self.expert_errors[0]:
+            self.last = dataclasses.replace(self.partner.last, expert=1)
+            self.last_coding = self.partner.last_coding
+        return self.last.box
 
     def move_to(self, box) -> None:
         """Move the estimate to ``box`` (1-based x, y, w, h), keeping the templates.
@@ -347,6 +377,8 @@ class NRMLCTracker:
         self.state = box_to_state(box, self.params.patch_size)
         self.particles = None
         self.log_weights = None
+        if self.partner is not None:
+            self.partner.move_to(box)
 
     def _levelled(self, frame: np.ndarray) -> np.ndarray:
         """``frame`` (height, width) float32 with its mean gray moved to the first frame's under

@@ -144,7 +144,7 @@ def track_sequence(sequence, params: TrackerParams | None = None, seed: int = 0,
             if before_update is not None:
                 before_update(index, tracker, frame)
             boxes.append(tracker.update(frame))
-            states.append(tracker.state.copy())
+            states.append(tracker.last.state.copy())  # the output's (a second expert's, when it is chosen)
             results.append(tracker.last)
             if negative_shares:
                 shares.append(coding_negative_shares(tracker.last_coding, tracker.params.dictionary_sizes))

@@ -32,6 +32,11 @@ MAX_RADIUS = 1000.0
 #: e-fold of scale or aspect, pi rad.
 MAX_MOTION_SIGMA = (1000.0, 1000.0, 1.0, math.pi, 1.0, math.pi)
 
+#: The lineage's motion model, ``affsig`` of the OTB benchmark's ASLA runs
+#: (``trackers/ASLA/paraConfig_ASLA.m`` in jwlim/tracker_benchmark; IVT's and SCM's demos use the
+#: same translation): the ``second_expert = 'lineage_noise'`` partner's, in image pixels.
+LINEAGE_MOTION_SIGMAS = (4.0, 4.0, 0.01, 0.0, 0.005, 0.0)
+
 #: Fields that were measured on the development sequences and not adopted, then removed from the
 #: code; passing one is refused with a pointer to the measurements.
 NOT_ADOPTED = ("patch_normalization", "dictionaries", "wide_share", "wide_factor", "estimate_count",
@@ -217,6 +222,17 @@ class TrackerParams:
         patch cancels a gain but not an offset, and an offset turns the target away from its
         positives. Round 36, at seeds 115-119: A +0.020 ± 0.011, B +0.002 ± 0.006, synthetic
         +0.007 ± 0.001 (docs/DEVIATIONS.md).
+    second_expert : {'off', 'lineage_noise', 'every_frame'}
+        A second NRMLC tracker beside the first (*ours*; 'off', the paper, runs one). It has the
+        same parameters and seed but one: under 'lineage_noise' the lineage's motion model (the
+        OTB benchmark's ASLA and IVT runs: ``affsig = [4, 4, 0.01, 0, 0.005, 0]`` in image
+        pixels, :data:`LINEAGE_MOTION_SIGMAS`), under 'every_frame' a template update every
+        frame (``update_interval = 1``). It has its own particles and templates; both track
+        every frame apart, and each frame's output is the estimate of the one whose recent
+        eps_pos* (an exponential average, ``expert_memory``) is lower
+        (:meth:`nrmlc.tracker.algorithm.NRMLCTracker.update`). It costs twice the time.
+    expert_memory : float
+        The weight of the past in each expert's average eps_pos* (*ours*: 0.95, about 20 frames).
     """
 
     # -- motion model and particles (Sec. 2, eq. 1) -------------------------------------
@@ -271,6 +287,10 @@ class TrackerParams:
     generative_lam: float = bounded(1.0, 0, 1000, low_open=True)
     generative_interval: int = bounded(5, 1)
     generative_step: int = bounded(4, 1, LOCAL_SIZE)
+
+    # -- a second expert (ours; NRMLCTracker.update) ---------------------------------------
+    second_expert: Literal["off", "lineage_noise", "every_frame"] = "off"
+    expert_memory: float = bounded(0.95, 0, 1, high_open=True)
 
     def __post_init__(self) -> None:
         kinds = _kinds()
@@ -348,8 +368,16 @@ class TrackerParams:
         return terms
 
     def estimated_bytes(self) -> float:
-        """Estimated peak memory of one tracker with these parameters (see :meth:`memory_terms`)."""
-        return float(sum(self.memory_terms().values()))
+        """Estimated peak memory of one tracker with these parameters (see :meth:`memory_terms`;
+        a second expert doubles it)."""
+        return float(sum(self.memory_terms().values())) * (1 if self.second_expert == "off" else 2)
+
+    def partner_params(self) -> "TrackerParams":
+        """The second expert's parameters (``second_expert``): these with the lineage's motion model
+        or an update every frame, and no expert of its own."""
+        if self.second_expert == "every_frame":
+            return self.replace(second_expert="off", update_interval=1)
+        return self.replace(second_expert="off", translation_noise="pixels", motion_sigmas=LINEAGE_MOTION_SIGMAS)
 
     def _check_memory(self, fail) -> None:
         # The combination matters (particles x templates, particles x patch side^2): each value may be
@@ -444,6 +472,7 @@ SECTIONS: dict[str, tuple[str, ...]] = {
                     "redetect_weak_radius", "redetect_weak_accept"),
     "generative": ("generative_weight", "generative_candidates", "generative_neighbours", "generative_lam",
                    "generative_interval", "generative_step"),
+    "experts": ("second_expert", "expert_memory"),
 }
 
 _dataclass_init = TrackerParams.__init__

@@ -1,0 +1,76 @@
+"""A second expert beside the tracker (``second_expert``, NRMLCTracker._output_of_the_experts)."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from nrmlc import NRMLCTracker, TrackerParams
+from nrmlc.data import SyntheticSequence, SyntheticSpec
+from nrmlc.errors import ParameterError
+from nrmlc.tracker.loop import track_sequence
+from nrmlc.tracker.params import LINEAGE_MOTION_SIGMAS
+
+# No floor: on a small synthetic target the floor makes the two motion models the same 4 px.
+SETTINGS = dict(n_particles=120, redetect_count=60, translation_floor=0.0)
+
+
+@pytest.fixture(scope="module")
+def sequence():
+    return SyntheticSequence(SyntheticSpec(name="e", seed=1, n_frames=30))
+
+
+def _run(sequence, seed=0, **changes):
+    return track_sequence(sequence, TrackerParams(**{**SETTINGS, **changes}), seed=seed)
+
+
+@pytest.mark.parametrize("kind, memory", [("lineage_noise", 0.0), ("lineage_noise", 0.95), ("every_frame", 0.95)])
+def test_the_output_is_the_expert_with_the_lower_average_error(sequence, kind, memory):
+    """The oracle: the two experts run apart as single trackers, and the output chosen frame by
+    frame from their boxes by the running average of eps_pos*."""
+    pair = _run(sequence, second_expert=kind, expert_memory=memory)
+    own = _run(sequence)
+    partner = _run(sequence, **(dict(update_interval=1) if kind == "every_frame" else
+                                dict(translation_noise="pixels", motion_sigmas=LINEAGE_MOTION_SIGMAS)))
+    errors = np.stack([own.diagnostics["error_positive"], partner.diagnostics["error_positive"]], axis=1)
+    average, chosen = np.zeros(2), [0]
+    for row in errors[1:]:
+        average = memory * average + (1 - memory) * row
+        chosen.append(int(average[1] < average[0]))
+    chosen = np.array(chosen)
+    assert 0 < chosen[1:].sum() < len(chosen) - 1  # both experts are output on some frames
+    expected = np.where(chosen[:, None] == 1, partner.boxes, own.boxes)
+    np.testing.assert_array_equal(pair.boxes, expected)
+    np.testing.assert_array_equal(pair.diagnostics["expert"][1:], chosen[1:])
+    np.testing.assert_array_equal(pair.states, np.where(chosen[:, None] == 1, partner.states, own.states))
+    np.testing.assert_array_equal(pair.diagnostics["error_positive"][1:],
+                                  errors[np.arange(len(errors)), chosen][1:])
+
+
+def test_off_is_one_tracker_and_the_partner_has_the_lineage_motion():
+    assert NRMLCTracker(seed=0).partner is None
+    params = TrackerParams(second_expert="lineage_noise")
+    partner = params.partner_params()
+    assert partner.second_expert == "off" and partner.translation_noise == "pixels"
+    assert partner.motion_sigmas == LINEAGE_MOTION_SIGMAS
+    assert partner.replace(translation_noise="relative", motion_sigmas=params.motion_sigmas,
+                           second_expert="lineage_noise") == params
+    assert params.estimated_bytes() == 2 * TrackerParams().estimated_bytes()
+    learner = TrackerParams(second_expert="every_frame").partner_params()
+    assert learner == TrackerParams(update_interval=1)
+
+
+def test_move_to_moves_both_experts(sequence):
+    tracker = NRMLCTracker(seed=0, second_expert="lineage_noise", **SETTINGS)
+    tracker.init(sequence.frame(0), sequence.init_box)
+    tracker.update(sequence.frame(1))
+    box = np.array([20.0, 15.0, 18.0, 14.0])
+    tracker.move_to(box)
+    np.testing.assert_array_equal(tracker.state, tracker.partner.state)
+
+
+@pytest.mark.parametrize("changes, name", [(dict(second_expert="twin"), "second_expert"),
+                                           (dict(expert_memory=1.0), "expert_memory"),
+                                           (dict(expert_memory=-0.1), "expert_memory")])
+def test_bad_values_name_the_parameter(changes, name):
+    with pytest.raises(ParameterError, match=name):
+        TrackerParams(**changes)
