@@ -11,7 +11,8 @@ from nrmlc.tracker.loop import track_sequence
 from nrmlc.tracker.params import LINEAGE_MOTION_SIGMAS
 
 # No floor: on a small synthetic target the floor makes the two motion models the same 4 px.
-SETTINGS = dict(n_particles=120, redetect_count=60, translation_floor=0.0)
+# One tracker unless a test names its second expert (the default has one since round 64).
+SETTINGS = dict(n_particles=120, redetect_count=60, translation_floor=0.0, second_expert="off")
 
 
 @pytest.fixture(scope="module")
@@ -47,20 +48,22 @@ def test_the_output_is_the_expert_with_the_lower_average_error(sequence, kind, m
 
 
 def test_off_is_one_tracker_and_the_partner_has_the_lineage_motion():
-    assert NRMLCTracker(seed=0).partner is None
+    assert NRMLCTracker(seed=0, second_expert="off").partner is None
+    assert NRMLCTracker(seed=0).partner is not None  # the default's (round 64); the paper's has none
+    assert TrackerParams.paper().second_expert == "off"
     params = TrackerParams(second_expert="lineage_noise")
     partner = params.partner_params()
     assert partner.second_expert == "off" and partner.translation_noise == "pixels"
     assert partner.motion_sigmas == LINEAGE_MOTION_SIGMAS
     assert partner.replace(translation_noise="relative", motion_sigmas=params.motion_sigmas,
                            second_expert="lineage_noise") == params
-    assert params.estimated_bytes() == 2 * TrackerParams().estimated_bytes()
+    assert params.estimated_bytes() == 2 * TrackerParams(second_expert="off").estimated_bytes()
     learner = TrackerParams(second_expert="every_frame").partner_params()
-    assert learner == TrackerParams(update_interval=1)
+    assert learner == TrackerParams(update_interval=1, second_expert="off")
 
 
 def test_move_to_moves_both_experts(sequence):
-    tracker = NRMLCTracker(seed=0, second_expert="lineage_noise", **SETTINGS)
+    tracker = NRMLCTracker(seed=0, **{**SETTINGS, "second_expert": "lineage_noise"})
     tracker.init(sequence.frame(0), sequence.init_box)
     tracker.update(sequence.frame(1))
     box = np.array([20.0, 15.0, 18.0, 14.0])

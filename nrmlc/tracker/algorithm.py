@@ -23,9 +23,10 @@ Per frame:
 6. every ``update_interval`` frames, resample the negative templates around the
    estimate and, unless the target is judged occluded (LEN(neg*) too large),
    add the result to the positive templates when eps_pos* < threshold;
-7. with a second expert (*ours*, ``second_expert``; off in the paper), a second tracker with the
-   lineage's motion model or an update every frame does steps 1-6 on its own, and the frame's
-   output is the estimate of the one whose running average of eps_pos* is lower.
+7. with a second expert (*ours*, ``second_expert``; off in the paper, on by default since round
+   64), a second tracker with an update every frame (or the lineage's motion model) does steps
+   1-6 on its own, and the frame's output is the estimate of the one whose running average of
+   eps_pos* is lower.
 """
 from __future__ import annotations
 

@@ -231,6 +231,9 @@ class TrackerParams:
         every frame apart, and each frame's output is the estimate of the one whose recent
         eps_pos* (an exponential average, ``expert_memory``) is lower
         (:meth:`nrmlc.tracker.algorithm.NRMLCTracker.update`). It costs twice the time.
+        *Ours*: 'every_frame' since round 64 (seeds 350-354: A +0.017 ± 0.014, B +0.012 ± 0.005;
+        named check 355-359: A +0.017 ± 0.003, B +0.019 ± 0.006; docs/DEVIATIONS.md); the
+        lineage's motion as partner did not hold (round 63).
     expert_memory : float
         The weight of the past in each expert's average eps_pos* (*ours*: 0.95, about 20 frames).
     """
@@ -289,7 +292,7 @@ class TrackerParams:
     generative_step: int = bounded(4, 1, LOCAL_SIZE)
 
     # -- a second expert (ours; NRMLCTracker.update) ---------------------------------------
-    second_expert: Literal["off", "lineage_noise", "every_frame"] = "off"
+    second_expert: Literal["off", "lineage_noise", "every_frame"] = "every_frame"
     expert_memory: float = bounded(0.95, 0, 1, high_open=True)
 
     def __post_init__(self) -> None:
@@ -455,7 +458,7 @@ PRESETS: dict[str, dict] = {
                   update_interval=5, update_error_threshold=0.1, redetect_count=0, redetect_trigger=0.99,
                   redetect_weak_radius=100.0, redetect_weak_accept=1.0,
                   generative_weight=0.0, n_particles=600, translation_floor=0.0, n_negative=150,
-                  brightness="raw"),
+                  brightness="raw", second_expert="off"),
 }
 
 
