@@ -43,7 +43,7 @@ ORACLE_IOU = 0.5
 #: The gates, the tracker's own first.
 GATES = ("rule", "rule and truth", "rule or truth", "truth")
 #: Bump when the job's output changes for the same inputs.
-ORACLE_VERSION = 1
+ORACLE_VERSION = 2  # 2: a second expert learns under the same gate
 
 
 class OracleGateTracker(NRMLCTracker):
@@ -54,6 +54,8 @@ class OracleGateTracker(NRMLCTracker):
         super().__init__(**kwargs)
         self.truth = np.asarray(truth, dtype=np.float64)
         self.gate = gate
+        if self.partner is not None:  # a second expert (``second_expert``) learns under the same gate
+            self.partner = OracleGateTracker(truth, gate, seed=self.seed, params=self.partner.params)
 
     def _update_templates(self, frame, result, new) -> None:
         index = self.frame_index

@@ -73,3 +73,9 @@ def test_job_key_names_the_gate(sequence):
     assert a.key("v") != b.key("v") and a.key("v") == OracleGateRun(sequence, PARAMS, 0, "truth").key("v")
     arrays = OracleGateRun(sequence, PARAMS, 0, "truth", n_frames=10).execute()
     assert arrays["boxes"].shape == (10, 4) and arrays["updated_positive"].shape == (10,)
+
+
+def test_a_second_expert_learns_under_the_same_gate():
+    tracker = OracleGateTracker(np.zeros((3, 4)), "truth", seed=1, params=PARAMS)
+    assert PARAMS.second_expert != "off" and isinstance(tracker.partner, OracleGateTracker)
+    assert tracker.partner.gate == "truth" and tracker.partner.partner is None
