@@ -62,6 +62,8 @@ PARTICLE_COUNTS = (100, 600, 1200)
 #: Candidates the per-candidate references are timed on (then scaled to N).
 REFERENCE_SUBSET = {"regularized": 120, "plain": 60, "constrained": 12}
 MODES = ("regularized", "constrained", "plain")
+#: Switches whose cost the end-to-end bench measures by flipping them (bench_end_to_end).
+FLIPPED_SWITCHES = ("generative_weight", "second_expert")
 #: Frames of Car4 for the end-to-end and thread rows; the project's speed target there.
 REAL_FRAMES = 300
 TARGET_FPS = 150.0
@@ -558,6 +560,9 @@ def bench_end_to_end(sequence, n_frames: int | None, rounds: int) -> list[dict]:
     # The generative term's cost: the default with the switch flipped (to its ablation value when off).
     flipped = 0.0 if default.generative_weight > 0 else TRIAL_VALUES["generative_weight"]
     variants[f"NRMLC generative_weight={flipped:g}"] = default.replace(generative_weight=flipped)
+    # The second expert's cost: the default with one tracker, or with the pair when the default has one.
+    expert = "off" if default.second_expert != "off" else "every_frame"
+    variants[f"NRMLC second_expert={expert}"] = default.replace(second_expert=expert)
     samples = {name: [] for name in variants}
     samples["OpenCV TrackerMIL"] = []
     for index in range(rounds):
@@ -775,7 +780,7 @@ def _summary(result: dict) -> list[str]:
             if other and mode != default_mode:
                 lines.append(f"{sequence}: " + compare(mode, other["fps_tracking"], default_mode, fps) + ".")
         for (other_sequence, other_tracker), other in by_name.items():
-            if other_sequence == sequence and "generative_weight" in other_tracker:
+            if other_sequence == sequence and any(f"{switch}=" in other_tracker for switch in FLIPPED_SWITCHES):
                 lines.append(f"{sequence}: " + compare(other_tracker.split()[-1], other["fps_tracking"],
                                                        "the default", fps) + ".")
     threads = result.get("threads") or []

@@ -12,6 +12,11 @@ docs/findings/round-63-a-second-expert.md). It prints, as ``experiments.screen``
 difference to the default on half A, half B and the synthetic suite with the adoption rule's
 verdict, for the partner alone and for the choice. It chooses nothing by itself: a second expert
 is judged by a screen of the tracker at seeds the study did not use.
+
+Since round 64 the default is itself such a pair (``second_expert = 'every_frame'``), and its
+runs' eps_pos* is, frame by frame, the chosen expert's; a partner beside it then stands for a third
+expert only approximately. The two single trackers that rounds 63 and 64 studied are the default
+of a commit before the adoption (``8668979``), whose cached runs the study reads unchanged.
 """
 from __future__ import annotations
 

@@ -76,6 +76,7 @@ def test_quick_bench_writes_json_and_markdown(tmp_path):
     trackers = {row["tracker"] for row in data["end_to_end"]}
     assert {"NRMLC regularized", "NRMLC constrained", "NRMLC plain", "OpenCV TrackerMIL"} <= trackers
     assert any(name.startswith("NRMLC generative_weight=") for name in trackers)  # the switch's cost
+    assert any(name.startswith("NRMLC second_expert=") for name in trackers)  # the second expert's cost
     assert all(row["fps_tracking"] > 0 for row in data["end_to_end"])
     assert data["machine"]["numba_threads"] >= 1 and data["machine"]["numpy"]
     assert data["threads_option"] is None  # the API's own configuration, untouched
@@ -83,6 +84,7 @@ def test_quick_bench_writes_json_and_markdown(tmp_path):
     assert "| warp |" in markdown and "TrackerMIL" in markdown and "## Stages of a frame" in markdown
     summary = "\n".join(data["summary"])
     assert "constrained is" in summary and "(default parameters" in summary
+    assert "second_expert=off is" in summary  # one tracker against the default's pair
     assert "slower by" not in markdown and "faster by" not in markdown
 
 
