@@ -206,6 +206,8 @@ class NRMLCTracker:
         self.rng = np.random.default_rng(self.seed)
         self.frame_index = -1
         self.state: np.ndarray | None = None
+        #: The scale (state[2]) of the last estimate recognised under the update gate (``scale_reversion``).
+        self.scale_reference: float | None = None
         self.last: FrameResult | None = None
         #: The last frame's :class:`Coding` of every candidate (set in ``update`` for observers
         #: such as experiments/internals.py; the algorithm never reads it).
@@ -300,6 +302,7 @@ class NRMLCTracker:
         self.rng = np.random.default_rng(self.seed)
         self.frame_shape = frame.shape
         self.state = box_to_state(box, p.patch_size)
+        self.scale_reference = float(self.state[2])
         self.initial_box = box
         self.first_frame_mean = float(frame.mean(dtype=np.float64))
         self.particles = None
@@ -339,6 +342,8 @@ class NRMLCTracker:
         frame = self._levelled(frame)
         self.frame_index += 1
         result, coding, best = self.step(frame)
+        if not result.occluded and result.error_positive < self.params.update_error_threshold:
+            self.scale_reference = float(self.state[2])
         best_patch = coding.patches[best][None, :]
         if (self.frame_index + 1) % self.params.update_interval == 0:
             self._update_templates(frame, result, best_patch)
@@ -376,6 +381,7 @@ class NRMLCTracker:
         if not usable_boxes(box):
             raise ParameterError(f"box must be 4 finite numbers (x, y, w, h) with w, h > 0, got {box.tolist()}")
         self.state = box_to_state(box, self.params.patch_size)
+        self.scale_reference = float(self.state[2])
         self.particles = None
         self.log_weights = None
         if self.partner is not None:
@@ -402,6 +408,8 @@ class NRMLCTracker:
             states = self.particles[np.minimum(picks, len(self.particles) - 1)]
         else:
             states = np.tile(self.state, (n, 1))
+        if p.scale_reversion > 0:
+            states[:, 2] *= (self.scale_reference / states[:, 2]) ** p.scale_reversion
         return self.diffuse(states)
 
     def diffuse(self, states: np.ndarray, translation_factor: float = 1.0) -> np.ndarray:

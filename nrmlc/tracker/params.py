@@ -163,6 +163,13 @@ class TrackerParams:
         ``affsig`` [4, 4, ...]): a small target's 2 template px (1/16 of its size) are fewer
         pixels than a fast step, a large target's are more and stay. Round 20, at seeds 10-14
         (docs/findings/round-20-fresh-seeds.md).
+    scale_reversion : float
+        *Ours*, round 65 (0 = off, the paper): before the motion noise, each particle's log scale
+        moves this share of the way to that of the last estimate recognised under the update
+        gate (eps_pos* < ``update_error_threshold``, not occluded; the first box until then).
+        While the positives do not describe what the box holds, the likelihood's lean in scale
+        (toward smaller, smoother patches) is all that moves the scale: lost boxes shrink
+        (docs/findings/scale-drift.md).
     redetect_count : int
         Re-detection (*ours*; 0 = off, the paper). On a frame whose best candidate's code
         puts no weight on a positive template (eps_pos* = 1: the target looks like nothing
@@ -244,6 +251,7 @@ class TrackerParams:
     propagation: Literal["condensation", "best"] = "condensation"
     translation_noise: Literal["relative", "pixels"] = "relative"
     translation_floor: float = bounded(4.0, 0, MAX_MOTION_SIGMA[0])
+    scale_reversion: float = bounded(0.0, 0, 1)
 
     # -- templates (Sec. 3) ---------------------------------------------------------------
     n_positive: int = bounded(50, 1)
@@ -464,7 +472,8 @@ PRESETS: dict[str, dict] = {
 
 #: The fields by the part of the algorithm they govern (the sections of the class body).
 SECTIONS: dict[str, tuple[str, ...]] = {
-    "motion": ("n_particles", "motion_sigmas", "propagation", "translation_noise", "translation_floor"),
+    "motion": ("n_particles", "motion_sigmas", "propagation", "translation_noise", "translation_floor",
+               "scale_reversion"),
     "templates": ("n_positive", "n_negative", "template_sampling", "positive_radius", "negative_radius",
                   "positive_sigma", "negative_push", "patch_size", "brightness"),
     "coding": ("dictionary_sizes", "coding", "lam", "beta", "n_iterations"),

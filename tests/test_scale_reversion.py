@@ -1,0 +1,45 @@
+"""scale_reversion (round 65): particles' log scale moves toward the last recognised estimate's."""
+import numpy as np
+import pytest
+
+from nrmlc import NRMLCTracker, TrackerParams
+from nrmlc.data import SyntheticSequence, SyntheticSpec
+
+NO_NOISE = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
+
+
+def _tracker(reversion: float) -> NRMLCTracker:
+    sequence = SyntheticSequence(SyntheticSpec(name="t", seed=3, n_frames=3))
+    tracker = NRMLCTracker(seed=0, n_particles=30, motion_sigmas=NO_NOISE, translation_floor=0.0,
+                           propagation="best", scale_reversion=reversion, second_expert="off")
+    tracker.init(sequence.raw_frame(0), sequence.init_box)
+    return tracker
+
+
+@pytest.mark.parametrize("reversion", [0.0, 0.25, 1.0])
+def test_particles_close_the_given_share_of_the_log_scale_gap(reversion):
+    tracker = _tracker(reversion)
+    reference = tracker.scale_reference
+    assert reference == tracker.state[2]
+    tracker.state[2] = reference * 0.5  # a box shrunk to half the recognised scale
+    states = tracker.sample_particles()
+    expected = np.log(0.5) * (1.0 - reversion)  # naive oracle in log scale
+    np.testing.assert_allclose(np.log(states[:, 2] / reference), expected, atol=1e-12)
+
+
+def test_the_reference_follows_recognised_estimates_only():
+    tracker = _tracker(0.1)
+    sequence = SyntheticSequence(SyntheticSpec(name="t", seed=3, n_frames=3))
+    tracker.update(sequence.raw_frame(1))
+    recognised = not tracker.last.occluded and tracker.last.error_positive < tracker.params.update_error_threshold
+    assert recognised  # the synthetic target is recognised on its second frame
+    assert tracker.scale_reference == tracker.state[2]
+    before = tracker.scale_reference
+    tracker.params = tracker.params.replace(update_error_threshold=0.0)  # nothing is recognised now
+    tracker.state[2] *= 0.9
+    tracker.update(sequence.raw_frame(2))
+    assert tracker.scale_reference == before
+
+
+def test_off_in_the_paper_preset_and_by_default():
+    assert TrackerParams.paper().scale_reversion == 0.0 and TrackerParams().scale_reversion == 0.0
