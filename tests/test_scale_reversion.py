@@ -43,3 +43,22 @@ def test_the_reference_follows_recognised_estimates_only():
 
 def test_off_in_the_paper_preset_and_by_default():
     assert TrackerParams.paper().scale_reversion == 0.0 and TrackerParams().scale_reversion == 0.0
+
+
+def test_own_leaves_the_partner_free_and_shared_joins_the_references():
+    params = TrackerParams(scale_reversion=0.05, scale_reversion_experts="own")
+    assert params.partner_params().scale_reversion == 0.0
+    assert TrackerParams(scale_reversion=0.05).partner_params().scale_reversion == 0.05
+    sequence = SyntheticSequence(SyntheticSpec(name="t", seed=5, n_frames=12))
+    tracker = NRMLCTracker(seed=1, scale_reversion=0.05, scale_reversion_experts="shared")
+    tracker.init(sequence.raw_frame(0), sequence.init_box)
+    both_recognised = set()  # frames on which each expert set its own reference
+    for index in range(1, 12):
+        tracker.update(sequence.raw_frame(index))
+        own, partner = tracker, tracker.partner
+        assert own.scale_reference_frame == partner.scale_reference_frame
+        if own.scale_reference != partner.scale_reference:
+            if own.scale_reference_frame == index:
+                both_recognised.add(index)
+            assert own.scale_reference_frame in both_recognised
+    assert own.scale_reference_frame > 0  # something was recognised, so the test saw references move

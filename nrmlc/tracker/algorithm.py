@@ -208,6 +208,7 @@ class NRMLCTracker:
         self.state: np.ndarray | None = None
         #: The scale (state[2]) of the last estimate recognised under the update gate (``scale_reversion``).
         self.scale_reference: float | None = None
+        self.scale_reference_frame = -1
         self.last: FrameResult | None = None
         #: The last frame's :class:`Coding` of every candidate (set in ``update`` for observers
         #: such as experiments/internals.py; the algorithm never reads it).
@@ -303,6 +304,7 @@ class NRMLCTracker:
         self.frame_shape = frame.shape
         self.state = box_to_state(box, p.patch_size)
         self.scale_reference = float(self.state[2])
+        self.scale_reference_frame = 0
         self.initial_box = box
         self.first_frame_mean = float(frame.mean(dtype=np.float64))
         self.particles = None
@@ -344,6 +346,7 @@ class NRMLCTracker:
         result, coding, best = self.step(frame)
         if not result.occluded and result.error_positive < self.params.update_error_threshold:
             self.scale_reference = float(self.state[2])
+            self.scale_reference_frame = self.frame_index
         best_patch = coding.patches[best][None, :]
         if (self.frame_index + 1) % self.params.update_interval == 0:
             self._update_templates(frame, result, best_patch)
@@ -361,6 +364,12 @@ class NRMLCTracker:
         box) the estimate of the expert whose average eps_pos* is lower (the own one on a tie).
         Each expert goes on from its own estimate: the choice changes only what is reported."""
         self.partner._update(image)
+        if self.params.scale_reversion_experts == "shared":
+            newer, older = ((self, self.partner) if self.scale_reference_frame > self.partner.scale_reference_frame
+                            else (self.partner, self))
+            if newer.scale_reference_frame > older.scale_reference_frame:
+                older.scale_reference = newer.scale_reference
+                older.scale_reference_frame = newer.scale_reference_frame
         memory = self.params.expert_memory
         errors = np.array([own.error_positive, self.partner.last.error_positive])
         self.expert_errors = memory * self.expert_errors + (1.0 - memory) * errors
@@ -382,6 +391,7 @@ class NRMLCTracker:
             raise ParameterError(f"box must be 4 finite numbers (x, y, w, h) with w, h > 0, got {box.tolist()}")
         self.state = box_to_state(box, self.params.patch_size)
         self.scale_reference = float(self.state[2])
+        self.scale_reference_frame = self.frame_index
         self.particles = None
         self.log_weights = None
         if self.partner is not None:

@@ -170,6 +170,10 @@ class TrackerParams:
         While the positives do not describe what the box holds, the likelihood's lean in scale
         (toward smaller, smoother patches) is all that moves the scale: lost boxes shrink
         (docs/findings/scale-drift.md).
+    scale_reversion_experts : {'both', 'own', 'shared'}
+        With a second expert: 'both' anchor each to its own last recognised scale; 'own' anchors
+        only the tracker itself (its partner's scale moves freely); 'shared' anchors both to the
+        scale recognised last by either (round 65).
     redetect_count : int
         Re-detection (*ours*; 0 = off, the paper). On a frame whose best candidate's code
         puts no weight on a positive template (eps_pos* = 1: the target looks like nothing
@@ -252,6 +256,7 @@ class TrackerParams:
     translation_noise: Literal["relative", "pixels"] = "relative"
     translation_floor: float = bounded(4.0, 0, MAX_MOTION_SIGMA[0])
     scale_reversion: float = bounded(0.0, 0, 1)
+    scale_reversion_experts: Literal["both", "own", "shared"] = "both"
 
     # -- templates (Sec. 3) ---------------------------------------------------------------
     n_positive: int = bounded(50, 1)
@@ -387,6 +392,8 @@ class TrackerParams:
         """The second expert's parameters (``second_expert``): these with the lineage's motion model
         or an update every frame, and no expert of its own."""
         if self.second_expert == "every_frame":
+            if self.scale_reversion_experts == "own":
+                return self.replace(second_expert="off", update_interval=1, scale_reversion=0.0)
             return self.replace(second_expert="off", update_interval=1)
         return self.replace(second_expert="off", translation_noise="pixels", motion_sigmas=LINEAGE_MOTION_SIGMAS)
 
@@ -473,7 +480,7 @@ PRESETS: dict[str, dict] = {
 #: The fields by the part of the algorithm they govern (the sections of the class body).
 SECTIONS: dict[str, tuple[str, ...]] = {
     "motion": ("n_particles", "motion_sigmas", "propagation", "translation_noise", "translation_floor",
-               "scale_reversion"),
+               "scale_reversion", "scale_reversion_experts"),
     "templates": ("n_positive", "n_negative", "template_sampling", "positive_radius", "negative_radius",
                   "positive_sigma", "negative_push", "patch_size", "brightness"),
     "coding": ("dictionary_sizes", "coding", "lam", "beta", "n_iterations"),
