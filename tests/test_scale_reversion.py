@@ -62,3 +62,15 @@ def test_own_leaves_the_partner_free_and_shared_joins_the_references():
                 both_recognised.add(index)
             assert own.scale_reference_frame in both_recognised
     assert own.scale_reference_frame > 0  # something was recognised, so the test saw references move
+
+
+def test_a_looser_reference_threshold_moves_the_reference_where_the_gate_does_not():
+    sequence = SyntheticSequence(SyntheticSpec(name="t", seed=3, n_frames=3))
+    strict = _tracker(0.1)
+    strict.params = strict.params.replace(update_error_threshold=1e-9)
+    loose = _tracker(0.1)
+    loose.params = loose.params.replace(update_error_threshold=1e-9, scale_reference_threshold=1.0)
+    for tracker in (strict, loose):
+        tracker.update(sequence.raw_frame(1))
+    assert not strict.last.occluded and strict.scale_reference_frame == 0
+    assert loose.scale_reference_frame == 1 and loose.scale_reference == loose.state[2]

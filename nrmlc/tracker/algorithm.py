@@ -344,7 +344,8 @@ class NRMLCTracker:
         frame = self._levelled(frame)
         self.frame_index += 1
         result, coding, best = self.step(frame)
-        if not result.occluded and result.error_positive < self.params.update_error_threshold:
+        if not result.occluded and result.error_positive < (self.params.scale_reference_threshold
+                                                             or self.params.update_error_threshold):
             self.scale_reference = float(self.state[2])
             self.scale_reference_frame = self.frame_index
         best_patch = coding.patches[best][None, :]

@@ -174,6 +174,9 @@ class TrackerParams:
         With a second expert: 'both' anchor each to its own last recognised scale; 'own' anchors
         only the tracker itself (its partner's scale moves freely); 'shared' anchors both to the
         scale recognised last by either (round 65).
+    scale_reference_threshold : float
+        The eps_pos* under which an estimate (not occluded) sets ``scale_reversion``'s reference;
+        0: ``update_error_threshold`` (round 65).
     redetect_count : int
         Re-detection (*ours*; 0 = off, the paper). On a frame whose best candidate's code
         puts no weight on a positive template (eps_pos* = 1: the target looks like nothing
@@ -257,6 +260,7 @@ class TrackerParams:
     translation_floor: float = bounded(4.0, 0, MAX_MOTION_SIGMA[0])
     scale_reversion: float = bounded(0.0, 0, 1)
     scale_reversion_experts: Literal["both", "own", "shared"] = "both"
+    scale_reference_threshold: float = bounded(0.0, 0, 1)
 
     # -- templates (Sec. 3) ---------------------------------------------------------------
     n_positive: int = bounded(50, 1)
@@ -480,7 +484,7 @@ PRESETS: dict[str, dict] = {
 #: The fields by the part of the algorithm they govern (the sections of the class body).
 SECTIONS: dict[str, tuple[str, ...]] = {
     "motion": ("n_particles", "motion_sigmas", "propagation", "translation_noise", "translation_floor",
-               "scale_reversion", "scale_reversion_experts"),
+               "scale_reversion", "scale_reversion_experts", "scale_reference_threshold"),
     "templates": ("n_positive", "n_negative", "template_sampling", "positive_radius", "negative_radius",
                   "positive_sigma", "negative_push", "patch_size", "brightness"),
     "coding": ("dictionary_sizes", "coding", "lam", "beta", "n_iterations"),
