@@ -74,3 +74,14 @@ def test_a_looser_reference_threshold_moves_the_reference_where_the_gate_does_no
         tracker.update(sequence.raw_frame(1))
     assert not strict.last.occluded and strict.scale_reference_frame == 0
     assert loose.scale_reference_frame == 1 and loose.scale_reference == loose.state[2]
+
+
+def test_partner_anchors_only_the_second_expert():
+    tracker = NRMLCTracker(seed=0, n_particles=30, motion_sigmas=NO_NOISE, translation_floor=0.0,
+                           propagation="best", scale_reversion=0.5, scale_reversion_experts="partner")
+    sequence = SyntheticSequence(SyntheticSpec(name="t", seed=3, n_frames=3))
+    tracker.init(sequence.raw_frame(0), sequence.init_box)
+    for expert, expected in ((tracker, np.log(0.5)), (tracker.partner, np.log(0.5) * 0.5)):
+        reference = expert.scale_reference
+        expert.state[2] = reference * 0.5
+        np.testing.assert_allclose(np.log(expert.sample_particles()[:, 2] / reference), expected, atol=1e-12)

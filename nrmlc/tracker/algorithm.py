@@ -419,7 +419,8 @@ class NRMLCTracker:
             states = self.particles[np.minimum(picks, len(self.particles) - 1)]
         else:
             states = np.tile(self.state, (n, 1))
-        if p.scale_reversion > 0:
+        # 'partner': the second expert anchors (its own parameters have no expert), the tracker does not.
+        if p.scale_reversion > 0 and not (p.scale_reversion_experts == "partner" and p.second_expert != "off"):
             states[:, 2] *= (self.scale_reference / states[:, 2]) ** p.scale_reversion
         return self.diffuse(states)
 

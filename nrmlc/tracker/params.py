@@ -170,10 +170,11 @@ class TrackerParams:
         While the positives do not describe what the box holds, the likelihood's lean in scale
         (toward smaller, smoother patches) is all that moves the scale: lost boxes shrink
         (docs/findings/scale-drift.md).
-    scale_reversion_experts : {'both', 'own', 'shared'}
+    scale_reversion_experts : {'both', 'own', 'shared', 'partner'}
         With a second expert: 'both' anchor each to its own last recognised scale; 'own' anchors
         only the tracker itself (its partner's scale moves freely); 'shared' anchors both to the
-        scale recognised last by either (round 65).
+        scale recognised last by either (round 65); 'partner' anchors only the second expert
+        (round 66).
     scale_reference_threshold : float
         The eps_pos* under which an estimate (not occluded) sets ``scale_reversion``'s reference;
         0: ``update_error_threshold`` (round 65).
@@ -259,7 +260,7 @@ class TrackerParams:
     translation_noise: Literal["relative", "pixels"] = "relative"
     translation_floor: float = bounded(4.0, 0, MAX_MOTION_SIGMA[0])
     scale_reversion: float = bounded(0.0, 0, 1)
-    scale_reversion_experts: Literal["both", "own", "shared"] = "both"
+    scale_reversion_experts: Literal["both", "own", "shared", "partner"] = "both"
     scale_reference_threshold: float = bounded(0.0, 0, 1)
 
     # -- templates (Sec. 3) ---------------------------------------------------------------
