@@ -51,11 +51,13 @@ class OracleGateTracker(NRMLCTracker):
     ground truth ``truth`` (n_frames, 4) of the frames it tracks."""
 
     def __init__(self, truth: np.ndarray, gate: str, **kwargs) -> None:
-        super().__init__(**kwargs)
-        self.truth = np.asarray(truth, dtype=np.float64)
+        self.truth = np.asarray(truth, dtype=np.float64)  # before the base builds the partner
         self.gate = gate
-        if self.partner is not None:  # a second expert (``second_expert``) learns under the same gate
-            self.partner = OracleGateTracker(truth, gate, seed=self.seed, params=self.partner.params)
+        super().__init__(**kwargs)
+
+    def _new_partner(self) -> NRMLCTracker:
+        # A second expert (``second_expert``) learns under the same gate.
+        return OracleGateTracker(self.truth, self.gate, seed=self.seed, params=self.params.partner_params())
 
     def _update_templates(self, frame, result, new) -> None:
         index = self.frame_index

@@ -31,6 +31,7 @@ from experiments.screen import (_report, add_run_options, add_target_options, ch
                                 screen_document, screen_row)
 from nrmlc.errors import NrmlcError
 from nrmlc.runner import RunCache
+from nrmlc.tracker.algorithm import choose_expert
 from nrmlc.tracker.loop import TrackResult
 from nrmlc.tracker.params import TrackerParams
 
@@ -59,9 +60,14 @@ def chosen_boxes(own: TrackResult, partner: TrackResult, memory: float) -> tuple
     average = np.zeros(2)
     chosen = np.zeros(len(own.boxes), dtype=np.int64)
     for index in range(1, len(errors)):
-        average = memory * average + (1.0 - memory) * errors[index]
-        chosen[index] = average[1] < average[0]
+        average, chosen[index] = choose_expert(average, errors[index], memory)
     return np.where(chosen[:, None] == 1, partner.boxes, own.boxes), chosen
+
+
+def _chosen_run(own: TrackResult, partner: TrackResult, memory: float) -> TrackResult:
+    """The choice as a run: each frame's box and state from the run chosen on it."""
+    boxes, chosen = chosen_boxes(own, partner, memory)
+    return TrackResult(boxes, np.where(chosen[:, None] == 1, partner.states, own.states))
 
 
 def main(argv=None) -> int:
@@ -73,8 +79,10 @@ def main(argv=None) -> int:
     add_run_options(parser)
     args = parser.parse_args(argv)
     try:
-        if not 0.0 <= args.memory < 1.0:
-            raise NrmlcError(f"--memory must be in [0, 1), got {args.memory}")
+        try:
+            TrackerParams(expert_memory=args.memory)  # the parameter's own bounds
+        except NrmlcError as error:
+            raise NrmlcError(f"--memory: {error}") from None
         partner = parse_variant("partner", args.partner, "default")
         seeds, sequences, groups = chosen_targets(args)
     except NrmlcError as error:
@@ -85,8 +93,7 @@ def main(argv=None) -> int:
     partner_specs = specs_for(sequences, partner, seeds, n_frames=args.max_frames)
     own_runs = cache.run(own_specs, jobs=args.jobs)
     partner_runs = cache.run(partner_specs, jobs=args.jobs)
-    choices = [TrackResult(chosen_boxes(own, other, args.memory)[0], own.states)
-               for own, other in zip(own_runs, partner_runs)]
+    choices = [_chosen_run(own, other, args.memory) for own, other in zip(own_runs, partner_runs)]
     measures = [run_measures(runs, own_specs) for runs in (own_runs, partner_runs, choices)]
     base = overlaps_of(measures[0])
     rows = [screen_row(name, params, overlaps_of(m), scales_of(m), base, groups, seeds)

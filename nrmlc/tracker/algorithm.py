@@ -167,6 +167,29 @@ class FrameResult:
     expert: int = 0
 
 
+def choose_expert(average: np.ndarray, errors: np.ndarray, memory: float) -> tuple[np.ndarray, int]:
+    """One frame of the second expert's choice (``second_expert``).
+
+    Parameters
+    ----------
+    average : (2,) float64
+        Each expert's running average of eps_pos* (own, second) before this frame; 0 at the first.
+    errors : (2,) float64
+        This frame's eps_pos* of each expert's estimate.
+    memory : float
+        The weight of the past (``expert_memory``), in [0, 1).
+
+    Returns
+    -------
+    average : (2,) float64
+        ``memory * average + (1 - memory) * errors``.
+    chosen : int
+        1 where the second expert's average is strictly lower, else 0 (the own one on a tie).
+    """
+    average = memory * average + (1.0 - memory) * errors
+    return average, int(average[1] < average[0])
+
+
 def _exp_or_inf(value: float) -> float:
     """exp(value) for reporting h, inf instead of an overflow warning."""
     return float("inf") if value > 709.0 else float(np.exp(value))
@@ -223,7 +246,7 @@ class NRMLCTracker:
         self.template_sq_norms: np.ndarray | None = None
         #: The second expert (``second_expert``), a tracker of its own, and both experts' running
         #: average of eps_pos* (own, second); None and unused when there is none.
-        self.partner = None if self.params.second_expert == "off" else NRMLCTracker(self.seed, self.params.partner_params())
+        self.partner = None if self.params.second_expert == "off" else self._new_partner()
         self.expert_errors = np.zeros(2)
         self._busy = threading.Lock()
 
@@ -315,7 +338,7 @@ class NRMLCTracker:
         self.last = None
         if self.partner is not None:
             self.partner._init(image, box)
-            self.expert_errors = np.zeros(2)
+        self.expert_errors = np.zeros(2)
 
     def update(self, image) -> np.ndarray:
         """Track into the next frame; returns the 1-based ``(x, y, w, h)`` box.
@@ -351,15 +374,19 @@ class NRMLCTracker:
             return self._output_of_the_experts(image, result)
         return result.box
 
+    def _new_partner(self) -> "NRMLCTracker":
+        """The second expert (``second_expert``): a tracker of this class's own kind, with the same
+        seed and :meth:`TrackerParams.partner_params`."""
+        return NRMLCTracker(self.seed, self.params.partner_params())
+
     def _output_of_the_experts(self, image, own: FrameResult) -> np.ndarray:
         """Track ``image`` with the second expert too, and make the output (``last``, the returned
         box) the estimate of the expert whose average eps_pos* is lower (the own one on a tie).
         Each expert goes on from its own estimate: the choice changes only what is reported."""
         self.partner._update(image)
-        memory = self.params.expert_memory
         errors = np.array([own.error_positive, self.partner.last.error_positive])
-        self.expert_errors = memory * self.expert_errors + (1.0 - memory) * errors
-        if self.expert_errors[1] < self.expert_errors[0]:
+        self.expert_errors, chosen = choose_expert(self.expert_errors, errors, self.params.expert_memory)
+        if chosen == 1:
             self.last = dataclasses.replace(self.partner.last, expert=1)
             self.last_coding = self.partner.last_coding
         return self.last.box

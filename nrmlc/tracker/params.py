@@ -230,7 +230,8 @@ class TrackerParams:
         frame (``update_interval = 1``). It has its own particles and templates; both track
         every frame apart, and each frame's output is the estimate of the one whose recent
         eps_pos* (an exponential average, ``expert_memory``) is lower
-        (:meth:`nrmlc.tracker.algorithm.NRMLCTracker.update`). It costs twice the time.
+        (:meth:`nrmlc.tracker.algorithm.NRMLCTracker.update`). It costs about two and a half
+        times one tracker's time (the partner's template update every frame; docs/PERFORMANCE.md).
         *Ours*: 'every_frame' since round 64 (seeds 350-354: A +0.017 ± 0.014, B +0.012 ± 0.005;
         named check 355-359: A +0.017 ± 0.003, B +0.019 ± 0.006; docs/DEVIATIONS.md); the
         lineage's motion as partner did not hold (round 63).
