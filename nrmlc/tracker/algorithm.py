@@ -386,10 +386,24 @@ class NRMLCTracker:
         self.partner._update(image)
         errors = np.array([own.error_positive, self.partner.last.error_positive])
         self.expert_errors, chosen = choose_expert(self.expert_errors, errors, self.params.expert_memory)
+        if self.params.expert_handover < 1.0:
+            self._hand_over(own, self.partner.last)
         if chosen == 1:
             self.last = dataclasses.replace(self.partner.last, expert=1)
             self.last_coding = self.partner.last_coding
         return self.last.box
+
+    def _hand_over(self, own: FrameResult, partner: FrameResult) -> None:
+        """``expert_handover``: the expert whose estimate is not recognised (eps_pos* at least the
+        handover level) draws its next particles around the other's recognised estimate."""
+        p = self.params
+        for giver, taker, taker_result in ((own, self.partner, partner), (partner, self, own)):
+            recognised = not giver.occluded and giver.error_positive < p.update_error_threshold
+            if recognised and taker_result.error_positive >= p.expert_handover:
+                taker.state = giver.state.copy()
+                taker.particles = None
+                taker.log_weights = None
+                return
 
     def move_to(self, box) -> None:
         """Move the estimate to ``box`` (1-based x, y, w, h), keeping the templates.

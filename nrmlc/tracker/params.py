@@ -237,6 +237,12 @@ class TrackerParams:
         lineage's motion as partner did not hold (round 63).
     expert_memory : float
         The weight of the past in each expert's average eps_pos* (*ours*: 0.95, about 20 frames).
+    expert_handover : float
+        *Ours*, round 67 (1 = off): on a frame where one expert's estimate is recognised under
+        the update gate (eps_pos* < ``update_error_threshold``, not occluded) and the other's
+        eps_pos* is at least this, the other's next particles are drawn around the recognised
+        estimate (its templates stay its own). A lost expert otherwise stays lost while its
+        partner holds the target, and the pair is one tracker again.
     """
 
     # -- motion model and particles (Sec. 2, eq. 1) -------------------------------------
@@ -295,6 +301,7 @@ class TrackerParams:
     # -- a second expert (ours; NRMLCTracker.update) ---------------------------------------
     second_expert: Literal["off", "lineage_noise", "every_frame"] = "every_frame"
     expert_memory: float = bounded(0.95, 0, 1, high_open=True)
+    expert_handover: float = bounded(1.0, 0, 1, low_open=True)
 
     def __post_init__(self) -> None:
         kinds = _kinds()
@@ -476,7 +483,7 @@ SECTIONS: dict[str, tuple[str, ...]] = {
                     "redetect_weak_radius", "redetect_weak_accept"),
     "generative": ("generative_weight", "generative_candidates", "generative_neighbours", "generative_lam",
                    "generative_interval", "generative_step"),
-    "experts": ("second_expert", "expert_memory"),
+    "experts": ("second_expert", "expert_memory", "expert_handover"),
 }
 
 _dataclass_init = TrackerParams.__init__
