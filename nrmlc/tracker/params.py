@@ -163,6 +163,21 @@ class TrackerParams:
         ``affsig`` [4, 4, ...]): a small target's 2 template px (1/16 of its size) are fewer
         pixels than a fast step, a large target's are more and stay. Round 20, at seeds 10-14
         (docs/findings/round-20-fresh-seeds.md).
+    scale_reversion : float
+        *Ours*, round 65 (0 = off, the paper): before the motion noise, each particle's log scale
+        moves this share of the way to that of the last estimate recognised under the update
+        gate (eps_pos* < ``update_error_threshold``, not occluded; the first box until then).
+        While the positives do not describe what the box holds, the likelihood's lean in scale
+        (toward smaller, smoother patches) is all that moves the scale: lost boxes shrink
+        (docs/findings/scale-drift.md).
+    scale_reversion_lost : float
+        ``scale_reversion`` acts only while this expert's running average of eps_pos* (memory
+        ``LOST_MEMORY``, 0.99; 0 from the first frame) is at least this; 0: on every frame (round
+        65). Round 68: a held target that changes size while not recognised keeps its average low,
+        a lost box's rises (docs/findings/round-68-the-anchor-only-while-lost.md).
+    scale_reference_threshold : float
+        The eps_pos* under which an estimate (not occluded) sets ``scale_reversion``'s reference;
+        0: ``update_error_threshold`` (round 65).
     redetect_count : int
         Re-detection (*ours*; 0 = off, the paper). On a frame whose best candidate's code
         puts no weight on a positive template (eps_pos* = 1: the target looks like nothing
@@ -245,6 +260,9 @@ class TrackerParams:
     propagation: Literal["condensation", "best"] = "condensation"
     translation_noise: Literal["relative", "pixels"] = "relative"
     translation_floor: float = bounded(4.0, 0, MAX_MOTION_SIGMA[0])
+    scale_reversion: float = bounded(0.0, 0, 1)
+    scale_reversion_lost: float = bounded(0.0, 0, 1)
+    scale_reference_threshold: float = bounded(0.0, 0, 1)
 
     # -- templates (Sec. 3) ---------------------------------------------------------------
     n_positive: int = bounded(50, 1)
@@ -465,7 +483,8 @@ PRESETS: dict[str, dict] = {
 
 #: The fields by the part of the algorithm they govern (the sections of the class body).
 SECTIONS: dict[str, tuple[str, ...]] = {
-    "motion": ("n_particles", "motion_sigmas", "propagation", "translation_noise", "translation_floor"),
+    "motion": ("n_particles", "motion_sigmas", "propagation", "translation_noise", "translation_floor",
+               "scale_reversion", "scale_reference_threshold", "scale_reversion_lost"),
     "templates": ("n_positive", "n_negative", "template_sampling", "positive_radius", "negative_radius",
                   "positive_sigma", "negative_push", "patch_size", "brightness"),
     "coding": ("dictionary_sizes", "coding", "lam", "beta", "n_iterations"),
