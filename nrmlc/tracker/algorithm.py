@@ -233,6 +233,8 @@ class NRMLCTracker:
         #: The last frame's :class:`Coding` of every candidate (set in ``update`` for observers
         #: such as experiments/internals.py; the algorithm never reads it).
         self.last_coding: Coding | None = None
+        #: This frame's gray frame after ``_levelled`` (for ``expert_judge = 'cross'``).
+        self.levelled_frame: np.ndarray | None = None
         self.generative: LocalHistogramModel | None = None
         self.frame_shape: tuple | None = None
         self.initial_box: np.ndarray | None = None
@@ -360,6 +362,7 @@ class NRMLCTracker:
             raise ParameterError(f"frame is {frame.shape[1]}x{frame.shape[0]} but init() saw "
                                  f"{self.frame_shape[1]}x{self.frame_shape[0]}")
         frame = self._levelled(frame)
+        self.levelled_frame = frame
         self.frame_index += 1
         result, coding, best = self.step(frame)
         best_patch = coding.patches[best][None, :]
@@ -385,6 +388,10 @@ class NRMLCTracker:
         Each expert goes on from its own estimate: the choice changes only what is reported."""
         self.partner._update(image)
         errors = np.array([own.error_positive, self.partner.last.error_positive])
+        if self.params.expert_judge == "cross":
+            both = self.patches(self.levelled_frame, np.stack([own.state, self.partner.last.state]))
+            cross = np.array([self.partner.positive_errors(both[:1])[0], self.positive_errors(both[1:])[0]])
+            errors = 0.5 * (errors + cross)
         self.expert_errors, chosen = choose_expert(self.expert_errors, errors, self.params.expert_memory)
         if chosen == 1:
             self.last = dataclasses.replace(self.partner.last, expert=1)
@@ -488,6 +495,16 @@ class NRMLCTracker:
                       coefficients=coded["coefficients"], weights=coded["weights"], codes=coded["codes"],
                       error_positive=error_positive, error_negative=error_negative,
                       log_confidence=log_confidence, similarity=similarity)
+
+    def positive_errors(self, candidates: np.ndarray) -> np.ndarray:
+        """eps_pos* (n,) of candidates (n, patch_size**2) float32 coded on the current templates,
+        as :meth:`encode` gives it, without the confidence."""
+        p = self.params
+        dots = candidate_template_dots(candidates, self.templates)
+        ridge_c, ridge_w = p.ridges
+        return code_candidates(candidates, dots, self.template_gram, self.template_sq_norms,
+                               np.asarray(p.dictionary_sizes, dtype=np.int64), len(self.positive_templates),
+                               ridge_c, ridge_w, p.coding == "constrained", p.n_iterations)["error_positive"]
 
     def _generative_similarity(self, candidates: np.ndarray, log_confidence: np.ndarray) -> np.ndarray:
         """The generative term's similarity (n,) of each candidate: the ``generative_candidates``

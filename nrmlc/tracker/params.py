@@ -237,6 +237,12 @@ class TrackerParams:
         lineage's motion as partner did not hold (round 63).
     expert_memory : float
         The weight of the past in each expert's average eps_pos* (*ours*: 0.95, about 20 frames).
+    expert_judge : {'own', 'cross'}
+        What each frame's eps_pos* in that average is: 'own' (round 64), that of the expert's
+        estimate on its own templates; 'cross' (round 68's oracle study, round 69), the mean of that
+        and the estimate's eps_pos* on the other expert's templates, so that an expert which has
+        learned a look-alike or the background (the partner learns every frame) is judged also by
+        positives that did not learn it.
     """
 
     # -- motion model and particles (Sec. 2, eq. 1) -------------------------------------
@@ -295,6 +301,7 @@ class TrackerParams:
     # -- a second expert (ours; NRMLCTracker.update) ---------------------------------------
     second_expert: Literal["off", "lineage_noise", "every_frame"] = "every_frame"
     expert_memory: float = bounded(0.95, 0, 1, high_open=True)
+    expert_judge: Literal["own", "cross"] = "own"
 
     def __post_init__(self) -> None:
         kinds = _kinds()
@@ -476,7 +483,7 @@ SECTIONS: dict[str, tuple[str, ...]] = {
                     "redetect_weak_radius", "redetect_weak_accept"),
     "generative": ("generative_weight", "generative_candidates", "generative_neighbours", "generative_lam",
                    "generative_interval", "generative_step"),
-    "experts": ("second_expert", "expert_memory"),
+    "experts": ("second_expert", "expert_memory", "expert_judge"),
 }
 
 _dataclass_init = TrackerParams.__init__
