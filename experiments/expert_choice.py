@@ -1,6 +1,7 @@
 """Offline: two configurations' runs side by side, the output on each frame chosen by eps_pos*.
 
 ``python -m experiments.expert_choice --seeds 335-344 --partner update_interval=1 [--memory 0.95]``
+``python -m experiments.expert_choice --seeds 370-374 --own second_expert=off --partner second_expert=off,update_interval=1``
 
 For every development target and seed, the default's run and a partner configuration's run (from
 the run cache, computed where missing) are joined frame by frame: each run keeps a running average
@@ -17,6 +18,13 @@ Since round 64 the default is itself such a pair (``second_expert = 'every_frame
 runs' eps_pos* is, frame by frame, the chosen expert's; a partner beside it then stands for a third
 expert only approximately. The two single trackers that rounds 63 and 64 studied are the default
 of a commit before the adoption (``8668979``), whose cached runs the study reads unchanged.
+
+``--own`` makes the own expert a configuration of its own (changes of the default): with
+``--own second_expert=off`` the two runs are the default's two experts, each tracking alone, and
+the choice at ``expert_memory`` is the default's own output frame by frame (the experts never
+move each other's boxes; tested). A partner other than the default's then gives, exactly and for
+the cost of its single runs, what the default would give with that partner (round 71). The rows
+are always judged against the default's runs.
 """
 from __future__ import annotations
 
@@ -75,6 +83,8 @@ def main(argv=None) -> int:
     add_target_options(parser)
     parser.add_argument("--partner", required=True, metavar="PARAM=VALUE,...",
                         help="the partner configuration: changes of the default")
+    parser.add_argument("--own", default="", metavar="PARAM=VALUE,...",
+                        help="the own expert's configuration: changes of the default (default: the default)")
     parser.add_argument("--memory", type=float, default=0.95, help="weight of the past in the running average")
     add_run_options(parser)
     args = parser.parse_args(argv)
@@ -84,23 +94,31 @@ def main(argv=None) -> int:
         except NrmlcError as error:
             raise NrmlcError(f"--memory: {error}") from None
         partner = parse_variant("partner", args.partner, "default")
+        own = parse_variant("own", args.own, "default")
         seeds, sequences, groups = chosen_targets(args)
     except NrmlcError as error:
         print(f"error: {error}", file=sys.stderr)
         return 2
     cache = RunCache(args.cache)
-    own_specs = specs_for(sequences, TrackerParams(), seeds, n_frames=args.max_frames)
+    default_specs = specs_for(sequences, TrackerParams(), seeds, n_frames=args.max_frames)
+    own_specs = specs_for(sequences, own, seeds, n_frames=args.max_frames)
     partner_specs = specs_for(sequences, partner, seeds, n_frames=args.max_frames)
-    own_runs = cache.run(own_specs, jobs=args.jobs)
+    default_runs = cache.run(default_specs, jobs=args.jobs)
+    own_runs = default_runs if own == TrackerParams() else cache.run(own_specs, jobs=args.jobs)
     partner_runs = cache.run(partner_specs, jobs=args.jobs)
-    choices = [_chosen_run(own, other, args.memory) for own, other in zip(own_runs, partner_runs)]
-    measures = [run_measures(runs, own_specs) for runs in (own_runs, partner_runs, choices)]
-    base = overlaps_of(measures[0])
-    rows = [screen_row(name, params, overlaps_of(m), scales_of(m), base, groups, seeds)
-            for name, params, m in (("partner alone", partner.as_dict(), measures[1]),
-                                    (f"the choice (memory {args.memory:g})", partner.as_dict(), measures[2]))]
-    document = screen_document(TrackerParams().as_dict(), base, scales_of(measures[0]), seeds, groups, rows)
-    print(f"default and partner ({args.partner}), seeds {args.seeds}")
+    choices = [_chosen_run(mine, other, args.memory) for mine, other in zip(own_runs, partner_runs)]
+    named = [("partner alone", partner, partner_runs)]
+    if own != TrackerParams():
+        named.append(("own alone", own, own_runs))
+    named.append((f"the choice (memory {args.memory:g})", partner, choices))
+    base_measures = run_measures(default_runs, default_specs)
+    base = overlaps_of(base_measures)
+    rows = []
+    for name, params, runs in named:
+        measures = run_measures(runs, default_specs)
+        rows.append(screen_row(name, params.as_dict(), overlaps_of(measures), scales_of(measures), base, groups, seeds))
+    document = screen_document(TrackerParams().as_dict(), base, scales_of(base_measures), seeds, groups, rows)
+    print(f"default; own ({args.own or 'the default'}) and partner ({args.partner}), seeds {args.seeds}")
     return _report(args, document)
 
 

@@ -48,3 +48,19 @@ def test_the_study_reports_the_partner_and_the_choice(tmp_path, capsys):
 def test_a_memory_outside_its_range_is_one_line(capsys):
     assert expert_choice.main(["--partner", "translation_floor=0", "--memory", "1"]) == 2
     assert "--memory" in capsys.readouterr().err
+
+
+def test_the_default_s_two_experts_run_alone_and_chosen_give_the_default(tmp_path):
+    """--own: the default's own expert and its partner, each run alone, chosen offline at the
+    default's memory, are the default's runs to the bit (the choice's paired difference is 0),
+    while each expert alone differs from them."""
+    out = tmp_path / "choice.json"
+    code = expert_choice.main(["--sequences", "", "--synthetic", "1", "--seeds", "0", "--max-frames", "40",
+                               "--own", "second_expert=off", "--partner", "second_expert=off,update_interval=1",
+                               "--cache", str(tmp_path / "cache"), "--json", str(out), "--jobs", "1"])
+    assert code == 0
+    document = json.loads(out.read_text())
+    rows = {row["name"]: row for row in document["variants"]}
+    assert list(rows) == ["partner alone", "own alone", "the choice (memory 0.95)"]
+    assert rows["the choice (memory 0.95)"]["per_seed"] == document["baseline_per_seed"]
+    assert any(rows[name]["per_seed"] != document["baseline_per_seed"] for name in ("partner alone", "own alone"))
