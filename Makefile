@@ -6,7 +6,8 @@
 #       PEERS=dir (default <DATA>/../peer_results) DRY_RUN=1 (print the grid and stop)
 #       DASK=tcp://host:8786 (run the grid on a Dask cluster; pip install -e .[cluster])
 #       PORTABLE=1 (what figures/ was made with: the AVX2 level that any x86-64 CPU with AVX2 and FMA runs,
-#       Intel or AMD: numba's haswell target, OpenBLAS's Haswell kernels, numpy's loops without AVX-512;
+#       Intel or AMD: numba's haswell target, OpenBLAS's Haswell kernels, numpy's loops without AVX-512,
+#       OpenCV's IPP at its AVX2 path (the live peers' boxes);
 #       a numba cache and a run cache of its own; docs/RELIABILITY.md#determinism)
 #       NUMBA_TARGET=cpu (compile the kernels for that CPU only, with caches of its own)
 #   make test                    the linter (ruff) and the test suite (what CI runs)
@@ -36,10 +37,10 @@ DASK        ?=
 NUMBA_TARGET ?=
 PORTABLE    ?=
 # The libraries that pick their code by the CPU at run time, held at the AVX2 level too (naming a
-# level the CPU lacks is not an error for either library).
+# level the CPU lacks is not an error for any of them).
 ifneq ($(PORTABLE),)
 NUMBA_TARGET := haswell
-LIBRARY_ENV := OPENBLAS_CORETYPE=Haswell NPY_DISABLE_CPU_FEATURES="X86_V4 AVX512_ICL AVX512_SPR"
+LIBRARY_ENV := OPENBLAS_CORETYPE=Haswell NPY_DISABLE_CPU_FEATURES="X86_V4 AVX512_ICL AVX512_SPR" OPENCV_IPP=avx2
 TARGET_NAME := portable
 else
 LIBRARY_ENV :=

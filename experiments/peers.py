@@ -10,8 +10,10 @@ Two sources of peer numbers, both scored with :mod:`nrmlc.metrics` against
    has a fresh process of its own (:func:`run_live`), which makes it
    deterministic, so one run per sequence; each run is cached like the
    NRMLC runs (``<run cache>/peers/<key>.npz``, written atomically) with a key
-   that hashes the tracker, the OpenCV version, the sequence and the frame
-   count, so a rerun recomputes nothing and an OpenCV upgrade recomputes all.
+   that hashes the tracker, the OpenCV version, the Intel IPP code path OpenCV
+   dispatches to (:func:`opencv_ipp`), the sequence and the frame count, so a rerun
+   recomputes nothing and an OpenCV upgrade, or a CPU whose IPP path differs,
+   recomputes all.
    Their fps is the time spent in ``init`` and ``update`` (decoding excluded),
    as for NRMLC.
 2. **Shipped results** (:func:`shipped_results`): ``<peer root>/<Tracker>/<Seq>.txt``
@@ -64,6 +66,16 @@ def opencv_version() -> str:
     import cv2
 
     return cv2.__version__
+
+
+def opencv_ipp() -> str:
+    """The Intel IPP build and code path OpenCV uses in this process (``'off'`` without IPP), e.g.
+    ``'ippIP AVX2 (l9) 2026.0.0 (-) Mar 27 2026'``. IPP picks its path by the CPU, and CSRT's boxes
+    follow it (AVX-512's ``k0`` against AVX2's ``l9``: docs/RELIABILITY.md#determinism);
+    ``OPENCV_IPP=avx2`` (set by ``make figures PORTABLE=1``) holds it at AVX2 on any CPU."""
+    import cv2
+
+    return cv2.ipp.getIppVersion() if cv2.ipp.useIPP() else "off"
 
 
 def _factory(name: str):
@@ -124,7 +136,7 @@ class LiveSpec(CachedJob):
         return f"{self.tracker} (OpenCV) {self.sequence.name}"
 
     def description(self, version: str | None = None) -> dict:
-        return {"tracker": self.tracker, "opencv": opencv_version(), "runner": LIVE_RUNNER_VERSION,
+        return {"tracker": self.tracker, "opencv": opencv_version(), "ipp": opencv_ipp(), "runner": LIVE_RUNNER_VERSION,
                 "parameters": LIVE_PARAMETERS.get(self.tracker, {}),
                 "sequence": sequence_identity(self.sequence), "sequence_name": self.sequence.name,
                 "n_frames": self.n_frames}

@@ -110,9 +110,10 @@ def numba_target() -> str:
     return f"{name} ({'host features' if features is None else 'features: ' + (features or 'none')})"
 
 
-# The variables that move OpenBLAS's and numpy's kernels off the host's best SIMD level
-# (`make figures PORTABLE=1`); they can change the boxes as the numba target can.
-LIBRARY_VARIABLES = ("OPENBLAS_CORETYPE", "NPY_DISABLE_CPU_FEATURES")
+# The variables that move OpenBLAS's, numpy's and OpenCV's IPP kernels off the host's best SIMD
+# level (`make figures PORTABLE=1`); they can change the boxes as the numba target can (IPP only
+# the peers' and the synthetic suite's drawing, whose integer pixels the tests pin).
+LIBRARY_VARIABLES = ("OPENBLAS_CORETYPE", "NPY_DISABLE_CPU_FEATURES", "OPENCV_IPP")
 
 
 def library_settings() -> dict:

@@ -31,8 +31,8 @@ def test_without_it_numba_compiles_for_the_host_into_the_usual_caches():
     assert "-m experiments.run_all --data \"somewhere\"" in recipe
 
 
-def test_portable_holds_numba_openblas_and_numpy_at_the_avx2_level_with_caches_of_its_own():
+def test_portable_holds_numba_openblas_numpy_and_ipp_at_the_avx2_level_with_caches_of_its_own():
     recipe = _dry_run("PORTABLE=1")
-    assert ('OPENBLAS_CORETYPE=Haswell NPY_DISABLE_CPU_FEATURES="X86_V4 AVX512_ICL AVX512_SPR" '
+    assert ('OPENBLAS_CORETYPE=Haswell NPY_DISABLE_CPU_FEATURES="X86_V4 AVX512_ICL AVX512_SPR" OPENCV_IPP=avx2 '
             "NUMBA_CPU_NAME=haswell NUMBA_CPU_FEATURES= NUMBA_CACHE_DIR=.cache/numba-portable " in recipe)
     assert "-m experiments.run_all --cache .cache/runs-portable --data \"somewhere\"" in recipe

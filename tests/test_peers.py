@@ -24,3 +24,29 @@ def test_kcf_moves_to_its_peak_on_every_frame_as_published():
     sequence = synthetic_suite(n_frames=30, n_sequences=1)[0]
     boxes = _run_live_here(LiveSpec(sequence, "KCF", None))["boxes"]
     assert np.isfinite(boxes).all() and boxes.shape == (30, 4)
+
+
+def test_the_ipp_code_path_is_in_the_key(monkeypatch):
+    """CSRT's boxes follow IPP's CPU dispatch, so runs made on another IPP path are not reused."""
+    from experiments import peers
+
+    spec = LiveSpec(synthetic_suite(n_frames=5, n_sequences=1)[0], "CSRT", None)
+    monkeypatch.setattr(peers, "opencv_ipp", lambda: "ippIP AVX2 (l9)")
+    avx2 = spec.key("v")
+    monkeypatch.setattr(peers, "opencv_ipp", lambda: "ippIP AVX-512F/CD/BW/DQ/VL (k0)")
+    assert spec.key("v") != avx2
+
+
+def test_opencv_ipp_avx2_holds_ipp_at_its_avx2_path():
+    """What ``make figures PORTABLE=1`` sets: IPP's AVX2 path on any CPU with AVX2."""
+    import os
+    import subprocess
+    import sys
+
+    code = "from experiments.peers import opencv_ipp; print(opencv_ipp())"
+    plain = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
+    if plain.strip() == "off":
+        pytest.skip("this OpenCV has no IPP")
+    held = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True,
+                          env={**os.environ, "OPENCV_IPP": "avx2"}).stdout
+    assert "AVX2 (l9)" in held

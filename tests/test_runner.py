@@ -118,6 +118,7 @@ def test_runs_read_from_another_numba_target_are_named_and_kept(tmp_path, counte
 
 def test_library_settings_are_recorded_beside_each_run(tmp_path, monkeypatch):
     monkeypatch.delenv("NPY_DISABLE_CPU_FEATURES", raising=False)
+    monkeypatch.delenv("OPENCV_IPP", raising=False)
     monkeypatch.setenv("OPENBLAS_CORETYPE", "Haswell")
     RunCache(tmp_path).run(grid(), jobs=1, progress=False)
     recorded = [json.loads(p.read_text())["library_settings"] for p in tmp_path.glob("*.json")]
