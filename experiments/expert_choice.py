@@ -101,11 +101,13 @@ def main(argv=None) -> int:
         return 2
     cache = RunCache(args.cache)
     default_specs = specs_for(sequences, TrackerParams(), seeds, n_frames=args.max_frames)
-    own_specs = specs_for(sequences, own, seeds, n_frames=args.max_frames)
-    partner_specs = specs_for(sequences, partner, seeds, n_frames=args.max_frames)
     default_runs = cache.run(default_specs, jobs=args.jobs)
-    own_runs = default_runs if own == TrackerParams() else cache.run(own_specs, jobs=args.jobs)
-    partner_runs = cache.run(partner_specs, jobs=args.jobs)
+
+    def runs_of(params: TrackerParams) -> list:
+        return cache.run(specs_for(sequences, params, seeds, n_frames=args.max_frames), jobs=args.jobs)
+
+    own_runs = default_runs if own == TrackerParams() else runs_of(own)
+    partner_runs = runs_of(partner)
     choices = [_chosen_run(mine, other, args.memory) for mine, other in zip(own_runs, partner_runs)]
     named = [("partner alone", partner, partner_runs)]
     if own != TrackerParams():
