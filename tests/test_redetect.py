@@ -163,3 +163,40 @@ def test_a_weakly_recognised_frame_takes_only_a_find_recognised_under_the_weak_a
         counted = np.isfinite(coded.log_confidence[200:])
         assert np.array_equal(counted, error < (0.5 if weak else 1.0))
         assert ((error >= 0.5) & (error < 1.0)).any() and (error < 0.5).any()
+
+
+def test_the_whole_frame_search_joins_only_after_enough_unrecognised_frames():
+    tracker, searched = _searched_frame(JUMP_FRAME, redetect_global=100, redetect_global_after=3)
+    height, width = tracker.frame_shape
+    tracker.frames_unrecognised = 2
+    assert len(searched(1.0)[0]) == 200 + 300
+    tracker.frames_unrecognised = 3
+    all_states, _ = searched(1.0)
+    assert len(all_states) == 200 + 300 + 100
+    whole = all_states[500:]
+    # Centred over the whole frame, at the last recognised estimate's size.
+    assert np.ptp(whole[:, 0]) > 0.5 * width and np.ptp(whole[:, 1]) > 0.5 * height
+    assert np.allclose(np.median(whole[:, 2]), tracker.recognised_state[2], rtol=0.05)
+
+
+def test_a_whole_frame_find_counts_anywhere_under_its_own_gate():
+    tracker, searched = _searched_frame(JUMP_FRAME, redetect_global=300, redetect_global_after=0,
+                                        redetect_global_accept=0.5, redetect_weak_radius=0.3)
+    for best_error in (0.5, 1.0):  # weakly recognised (the near search's radius) or not at all
+        all_states, coded = searched(best_error)
+        error = coded.error_positive[500:]
+        counted = np.isfinite(coded.log_confidence[500:])
+        assert np.array_equal(counted, error < 0.5)
+        assert counted.any() and (~counted).any()
+
+
+def test_the_tracker_counts_the_frames_since_its_last_recognised_estimate():
+    frames, truth = jump_scene(jump_frame=JUMP_FRAME)
+    for accept, expected in ((1e-9, len(frames) - 1), (1.0, 0)):
+        tracker = NRMLCTracker(seed=0, n_particles=100, redetect_accept=accept, second_expert="off")
+        tracker.init(frames[0], truth[0])
+        for frame in frames[1:]:
+            tracker.update(frame)
+        assert tracker.frames_unrecognised == expected
+        if expected == 0:
+            assert np.array_equal(tracker.recognised_state, tracker.state)

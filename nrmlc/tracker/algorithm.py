@@ -236,6 +236,10 @@ class NRMLCTracker:
         self.generative: LocalHistogramModel | None = None
         self.frame_shape: tuple | None = None
         self.initial_box: np.ndarray | None = None
+        #: The last estimate recognised under ``redetect_accept``, and the frames since (the
+        #: whole-frame search, ``redetect_global``).
+        self.recognised_state: np.ndarray | None = None
+        self.frames_unrecognised = 0
         self.first_frame_mean: float | None = None
         self.particles: np.ndarray | None = None
         self.log_weights: np.ndarray | None = None
@@ -324,6 +328,8 @@ class NRMLCTracker:
         self.frame_shape = frame.shape
         self.state = box_to_state(box, p.patch_size)
         self.initial_box = box
+        self.recognised_state = self.state.copy()
+        self.frames_unrecognised = 0
         self.first_frame_mean = float(frame.mean(dtype=np.float64))
         self.particles = None
         self.log_weights = None
@@ -527,6 +533,11 @@ class NRMLCTracker:
         negative = indices >= n_pos
         n_negative_used = int(np.count_nonzero(np.abs(codes[negative]) > p.coefficient_tolerance))
         self.state = states[best].copy()
+        if coding.error_positive[best] < p.redetect_accept:
+            self.recognised_state = self.state.copy()
+            self.frames_unrecognised = 0
+        else:
+            self.frames_unrecognised += 1
         result = FrameResult(
             state=self.state.copy(), box=state_to_box(self.state, p.patch_size),
             confidence=_exp_or_inf(log_confidence[best]), log_confidence=float(log_confidence[best]),

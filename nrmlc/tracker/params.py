@@ -193,6 +193,13 @@ class TrackerParams:
         join the positives (*ours*: 0.1; 1, only ``redetect_accept``, in the ``paper`` preset;
         round 51: a take at 0.17 began Suv's loss, the finds that held BlurFace, Boy and Lemming
         were at 0.01-0.10).
+    redetect_global, redetect_global_after, redetect_global_accept
+        A search of the whole frame (*ours*, round 35, screened again in round 73; 0 = off): on
+        a frame that runs the search once no estimate has been recognised (eps_pos* <
+        ``redetect_accept``) for ``redetect_global_after`` frames, ``redetect_global`` more
+        candidates are centred uniformly over the frame at the last recognised estimate's
+        shape; one counts only if its eps_pos < ``redetect_global_accept`` (0.1, the update
+        gate: round 51's lesson), wherever it lies.
     generative_weight : float
         A local-patch generative term in the confidence (*ours*, after SCM's generative
         model; 0 = off, the paper): log h gains ``generative_weight * log(similarity)``,
@@ -283,6 +290,9 @@ class TrackerParams:
     redetect_trigger: float = bounded(0.15, 0, 1, low_open=True)
     redetect_weak_radius: float = bounded(1.0, 0, 100, low_open=True)
     redetect_weak_accept: float = bounded(0.1, 0, 1, low_open=True)
+    redetect_global: int = bounded(0, 0, MAX_PARTICLES)
+    redetect_global_after: int = bounded(10, 0)
+    redetect_global_accept: float = bounded(0.1, 0, 1, low_open=True)
 
     # -- generative term (ours, after SCM; nrmlc.tracker.generative) ----------------------
     generative_weight: float = bounded(10.0, 0, 1000)
@@ -347,7 +357,7 @@ class TrackerParams:
     def memory_terms(self) -> dict[str, float]:
         """Bytes the largest per-frame arrays take, by the parameters that size them (an estimate
         with the copies a frame makes; the frame itself and the interpreter come on top)."""
-        candidates = self.n_particles + self.redetect_count
+        candidates = self.n_particles + self.redetect_count + self.redetect_global
         vector = self.patch_size**2
         templates = self.max_positive + self.n_negative
         local = ((self.patch_size - LOCAL_SIZE) // self.generative_step + 1) ** 2
@@ -473,7 +483,8 @@ SECTIONS: dict[str, tuple[str, ...]] = {
     "updates": ("update_interval", "max_positive", "update_error_threshold", "occlusion_detection",
                 "occlusion_max_negative", "coefficient_tolerance"),
     "redetection": ("redetect_count", "redetect_factor", "redetect_accept", "redetect_trigger",
-                    "redetect_weak_radius", "redetect_weak_accept"),
+                    "redetect_weak_radius", "redetect_weak_accept", "redetect_global", "redetect_global_after",
+                    "redetect_global_accept"),
     "generative": ("generative_weight", "generative_candidates", "generative_neighbours", "generative_lam",
                    "generative_interval", "generative_step"),
     "experts": ("second_expert", "expert_memory"),
