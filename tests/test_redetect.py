@@ -168,9 +168,12 @@ def test_a_weakly_recognised_frame_takes_only_a_find_recognised_under_the_weak_a
 def test_the_whole_frame_search_joins_only_after_enough_unrecognised_frames():
     tracker, searched = _searched_frame(JUMP_FRAME, redetect_global=100, redetect_global_after=3)
     height, width = tracker.frame_shape
-    tracker.frames_unrecognised = 2
+    assert tracker.peer is tracker.partner and tracker.partner.peer is tracker
+    tracker.frames_unrecognised = tracker.peer.frames_unrecognised = 2
     assert len(searched(1.0)[0]) == 200 + 300
     tracker.frames_unrecognised = 3
+    assert len(searched(1.0)[0]) == 200 + 300  # the other expert recognised its estimate 2 frames ago
+    tracker.peer.frames_unrecognised = 5
     all_states, _ = searched(1.0)
     assert len(all_states) == 200 + 300 + 100
     whole = all_states[500:]
@@ -180,14 +183,20 @@ def test_the_whole_frame_search_joins_only_after_enough_unrecognised_frames():
 
 
 def test_a_whole_frame_find_counts_anywhere_under_its_own_gate():
-    tracker, searched = _searched_frame(JUMP_FRAME, redetect_global=300, redetect_global_after=0,
-                                        redetect_global_accept=0.5, redetect_weak_radius=0.3)
+    from nrmlc.geometry import state_to_box
+    tracker, searched = _searched_frame(JUMP_FRAME, redetect_global=2000, redetect_global_after=0,
+                                        redetect_global_accept=0.8, redetect_weak_radius=0.3)
+    tracker.frames_unrecognised = tracker.peer.frames_unrecognised = 0
+    box = state_to_box(tracker.state, tracker.params.patch_size)
+    reach = 0.3 * np.sqrt(box[2] * box[3])
     for best_error in (0.5, 1.0):  # weakly recognised (the near search's radius) or not at all
         all_states, coded = searched(best_error)
         error = coded.error_positive[500:]
         counted = np.isfinite(coded.log_confidence[500:])
-        assert np.array_equal(counted, error < 0.5)
-        assert counted.any() and (~counted).any()
+        assert np.array_equal(counted, error < 0.8)
+        assert (~counted).any()
+        # Finds beyond the near search's reach count too (the target has jumped away).
+        assert (np.hypot(*(all_states[500:][counted, :2] - tracker.state[:2]).T) > reach).any()
 
 
 def test_the_tracker_counts_the_frames_since_its_last_recognised_estimate():
@@ -200,3 +209,18 @@ def test_the_tracker_counts_the_frames_since_its_last_recognised_estimate():
         assert tracker.frames_unrecognised == expected
         if expected == 0:
             assert np.array_equal(tracker.recognised_state, tracker.state)
+
+
+def test_a_whole_frame_search_that_takes_nothing_leaves_the_boxes_as_they_were():
+    frames, truth = jump_scene(jump_frame=JUMP_FRAME)
+    runs = []
+    for changes in ({}, {"redetect_global": 100, "redetect_global_after": 0, "redetect_global_accept": 1e-9}):
+        tracker = NRMLCTracker(seed=3, n_particles=100, redetect_count=100, **changes)
+        tracker.init(frames[0], truth[0])
+        boxes, searched = [], 0
+        for frame in frames[1:]:
+            boxes.append(tracker.update(frame))
+            searched += tracker.partner.last.redetect_searched
+        runs.append(np.array(boxes))
+    assert searched > 0  # the search ran (and with it the whole-frame candidates), yet nothing moved
+    assert np.array_equal(runs[0], runs[1])

@@ -240,6 +240,8 @@ class NRMLCTracker:
         #: whole-frame search, ``redetect_global``).
         self.recognised_state: np.ndarray | None = None
         self.frames_unrecognised = 0
+        #: That search's own generator, so that a search that takes nothing changes nothing.
+        self.search_rng = np.random.default_rng([self.seed, 73])
         self.first_frame_mean: float | None = None
         self.particles: np.ndarray | None = None
         self.log_weights: np.ndarray | None = None
@@ -251,6 +253,11 @@ class NRMLCTracker:
         #: The second expert (``second_expert``), a tracker of its own, and both experts' running
         #: average of eps_pos* (own, second); None and unused when there is none.
         self.partner = None if self.params.second_expert == "off" else self._new_partner()
+        #: The other expert of a pair (either way round): the whole-frame search waits until
+        #: neither has recognised its estimate for ``redetect_global_after`` frames.
+        self.peer = self.partner
+        if self.partner is not None:
+            self.partner.peer = self
         self.expert_errors = np.zeros(2)
         self._busy = threading.Lock()
 
@@ -330,6 +337,7 @@ class NRMLCTracker:
         self.initial_box = box
         self.recognised_state = self.state.copy()
         self.frames_unrecognised = 0
+        self.search_rng = np.random.default_rng([self.seed, 73])
         self.first_frame_mean = float(frame.mean(dtype=np.float64))
         self.particles = None
         self.log_weights = None
@@ -437,11 +445,12 @@ class NRMLCTracker:
             states = np.tile(self.state, (n, 1))
         return self.diffuse(states)
 
-    def diffuse(self, states: np.ndarray, translation_factor: float = 1.0) -> np.ndarray:
+    def diffuse(self, states: np.ndarray, translation_factor: float = 1.0, rng=None) -> np.ndarray:
         """Add the motion model's noise to ``states`` (n, 6) in place, with the translation
-        noise ``translation_factor`` times larger (re-detection); clamp them."""
+        noise ``translation_factor`` times larger (re-detection); clamp them. ``rng``: the
+        generator to draw from (the tracker's when None)."""
         p = self.params
-        standard = self.rng.standard_normal((len(states), 6))
+        standard = (self.rng if rng is None else rng).standard_normal((len(states), 6))
         noise = standard * np.asarray(p.motion_sigmas)
         if p.translation_noise == "relative":
             size = states[:, 2] * np.sqrt(0.5 * (1.0 + states[:, 4] ** 2))

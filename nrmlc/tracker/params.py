@@ -196,10 +196,12 @@ class TrackerParams:
     redetect_global, redetect_global_after, redetect_global_accept
         A search of the whole frame (*ours*, round 35, screened again in round 73; 0 = off): on
         a frame that runs the search once no estimate has been recognised (eps_pos* <
-        ``redetect_accept``) for ``redetect_global_after`` frames, ``redetect_global`` more
+        ``redetect_accept``) for ``redetect_global_after`` frames, by either expert of a pair
+        (round 73: a held target the other expert recognises is not lost), ``redetect_global`` more
         candidates are centred uniformly over the frame at the last recognised estimate's
         shape; one counts only if its eps_pos < ``redetect_global_accept`` (0.1, the update
-        gate: round 51's lesson), wherever it lies.
+        gate: round 51's lesson), wherever it lies. Its candidates come from a generator of
+        their own, so a search that takes nothing leaves the run as it was.
     generative_weight : float
         A local-patch generative term in the confidence (*ours*, after SCM's generative
         model; 0 = off, the paper): log h gains ``generative_weight * log(similarity)``,

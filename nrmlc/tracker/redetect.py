@@ -64,7 +64,10 @@ def search(tracker, frame: np.ndarray, states: np.ndarray, coding) -> tuple:
         reach = p.redetect_weak_radius * np.sqrt(box[2] * box[3])
         accepted &= np.hypot(*(extra[:, :2] - tracker.state[:2]).T) <= reach
         accepted &= extra_coding.error_positive < p.redetect_weak_accept
-    if p.redetect_global > 0 and tracker.frames_unrecognised >= p.redetect_global_after:
+    unrecognised = tracker.frames_unrecognised
+    if tracker.peer is not None:  # a held target one expert still recognises is not lost
+        unrecognised = min(unrecognised, tracker.peer.frames_unrecognised)
+    if p.redetect_global > 0 and unrecognised >= p.redetect_global_after:
         # Lost for a while: the target may be anywhere, so candidates over the whole frame, and
         # only a find recognised under their own gate counts (round 73).
         whole = whole_frame_states(tracker, p.redetect_global)
@@ -79,9 +82,10 @@ def search(tracker, frame: np.ndarray, states: np.ndarray, coding) -> tuple:
 
 def whole_frame_states(tracker, n: int) -> np.ndarray:
     """(n, 6) states centred uniformly over the frame at the last recognised estimate's shape
-    (``recognised_state``), diffused by the motion model (``redetect_global``)."""
+    (``recognised_state``), diffused by the motion model (``redetect_global``), drawn from the
+    search's own generator."""
     height, width = tracker.frame_shape
     states = np.tile(tracker.recognised_state, (n, 1))
-    states[:, 0] = tracker.rng.uniform(0.0, width - 1.0, n)
-    states[:, 1] = tracker.rng.uniform(0.0, height - 1.0, n)
-    return tracker.diffuse(states)
+    states[:, 0] = tracker.search_rng.uniform(0.0, width - 1.0, n)
+    states[:, 1] = tracker.search_rng.uniform(0.0, height - 1.0, n)
+    return tracker.diffuse(states, rng=tracker.search_rng)
