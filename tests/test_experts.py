@@ -47,6 +47,27 @@ def test_the_output_is_the_expert_with_the_lower_average_error(sequence, kind, m
                                   errors[np.arange(len(errors)), chosen][1:])
 
 
+@pytest.mark.parametrize("gate", [0.02, 0.03])
+def test_recency_outputs_the_expert_recognised_on_the_later_frame(gate):
+    """The oracle: ``expert_choice = 'recency'`` from the two experts' single runs, the last frame
+    each estimate was under the update gate compared, the average's choice where it is the same."""
+    sequence = SyntheticSequence(SyntheticSpec(name="e", seed=2, n_frames=30))  # both experts fall off the gate
+    changes = dict(update_error_threshold=gate)
+    pair = _run(sequence, second_expert="every_frame", expert_choice="recency", **changes)
+    own, partner = _run(sequence, **changes), _run(sequence, update_interval=1, **changes)
+    errors = np.stack([own.diagnostics["error_positive"], partner.diagnostics["error_positive"]], axis=1)
+    average, last, by_average, chosen = np.zeros(2), np.zeros(2), [0], [0]
+    for frame, row in enumerate(errors[1:], start=1):
+        average = 0.95 * average + 0.05 * row
+        last[row < gate] = frame
+        by_average.append(int(average[1] < average[0]))
+        chosen.append(by_average[-1] if last[0] == last[1] else int(last[1] > last[0]))
+    chosen = np.array(chosen)
+    assert np.any(chosen != np.array(by_average))  # the rule decides some frame
+    np.testing.assert_array_equal(pair.boxes, np.where(chosen[:, None] == 1, partner.boxes, own.boxes))
+    np.testing.assert_array_equal(pair.diagnostics["expert"][1:], chosen[1:])
+
+
 def test_off_is_one_tracker_and_the_partner_has_the_lineage_motion():
     assert NRMLCTracker(seed=0, second_expert="off").partner is None
     assert NRMLCTracker(seed=0).partner is not None  # the default's (round 64); the paper's has none
@@ -73,7 +94,8 @@ def test_move_to_moves_both_experts(sequence):
 
 @pytest.mark.parametrize("changes, name", [(dict(second_expert="twin"), "second_expert"),
                                            (dict(expert_memory=1.0), "expert_memory"),
-                                           (dict(expert_memory=-0.1), "expert_memory")])
+                                           (dict(expert_memory=-0.1), "expert_memory"),
+                                           (dict(expert_choice="latest"), "expert_choice")])
 def test_bad_values_name_the_parameter(changes, name):
     with pytest.raises(ParameterError, match=name):
         TrackerParams(**changes)

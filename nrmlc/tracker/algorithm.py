@@ -190,6 +190,22 @@ def choose_expert(average: np.ndarray, errors: np.ndarray, memory: float) -> tup
     return average, int(average[1] < average[0])
 
 
+def choose_recent_expert(recognised_at: np.ndarray, chosen: int) -> int:
+    """``expert_choice = 'recency'``: the expert whose estimate was last recognised on the later
+    frame; ``chosen`` (the choice by average, :func:`choose_expert`) where it was the same frame.
+
+    Parameters
+    ----------
+    recognised_at : (2,) int64
+        The last frame on which each expert's estimate had eps_pos* under the update gate (own,
+        second; 0, the first frame, before any).
+    chosen : int
+    """
+    if recognised_at[0] == recognised_at[1]:
+        return chosen
+    return int(recognised_at[1] > recognised_at[0])
+
+
 def _exp_or_inf(value: float) -> float:
     """exp(value) for reporting h, inf instead of an overflow warning."""
     return float("inf") if value > 709.0 else float(np.exp(value))
@@ -244,10 +260,12 @@ class NRMLCTracker:
         self.templates: np.ndarray | None = None
         self.template_gram: np.ndarray | None = None
         self.template_sq_norms: np.ndarray | None = None
-        #: The second expert (``second_expert``), a tracker of its own, and both experts' running
-        #: average of eps_pos* (own, second); None and unused when there is none.
+        #: The second expert (``second_expert``), a tracker of its own, both experts' running
+        #: average of eps_pos* (own, second) and the last frame each was recognised on
+        #: (``expert_choice``); None and unused when there is none.
         self.partner = None if self.params.second_expert == "off" else self._new_partner()
         self.expert_errors = np.zeros(2)
+        self.expert_recognised_at = np.zeros(2, dtype=np.int64)
         self._busy = threading.Lock()
 
     def __getstate__(self) -> dict:
@@ -339,6 +357,7 @@ class NRMLCTracker:
         if self.partner is not None:
             self.partner._init(image, box)
         self.expert_errors = np.zeros(2)
+        self.expert_recognised_at = np.zeros(2, dtype=np.int64)
 
     def update(self, image) -> np.ndarray:
         """Track into the next frame; returns the 1-based ``(x, y, w, h)`` box.
@@ -375,17 +394,22 @@ class NRMLCTracker:
         return result.box
 
     def _new_partner(self) -> "NRMLCTracker":
-        """The second expert (``second_expert``): a tracker of this class's own kind, with the same
-        seed and :meth:`TrackerParams.partner_params`."""
+        """The second expert (``second_expert``): an :class:`NRMLCTracker` (whatever this tracker's
+        class) with the same seed and :meth:`TrackerParams.partner_params`."""
         return NRMLCTracker(self.seed, self.params.partner_params())
 
     def _output_of_the_experts(self, image, own: FrameResult) -> np.ndarray:
         """Track ``image`` with the second expert too, and make the output (``last``, the returned
-        box) the estimate of the expert whose average eps_pos* is lower (the own one on a tie).
-        Each expert goes on from its own estimate: the choice changes only what is reported."""
+        box) the estimate of the expert chosen by ``expert_choice`` (by average: the lower average
+        eps_pos*, the own one on a tie). Each expert goes on from its own estimate: the choice
+        changes only what is reported."""
+        p = self.params
         self.partner._update(image)
         errors = np.array([own.error_positive, self.partner.last.error_positive])
-        self.expert_errors, chosen = choose_expert(self.expert_errors, errors, self.params.expert_memory)
+        self.expert_errors, chosen = choose_expert(self.expert_errors, errors, p.expert_memory)
+        if p.expert_choice == "recency":
+            self.expert_recognised_at[errors < p.update_error_threshold] = self.frame_index
+            chosen = choose_recent_expert(self.expert_recognised_at, chosen)
         if chosen == 1:
             self.last = dataclasses.replace(self.partner.last, expert=1)
             self.last_coding = self.partner.last_coding

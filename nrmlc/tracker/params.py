@@ -237,6 +237,12 @@ class TrackerParams:
         lineage's motion as partner did not hold (round 63).
     expert_memory : float
         The weight of the past in each expert's average eps_pos* (*ours*: 0.95, about 20 frames).
+    expert_choice : {'average', 'recency'}
+        How the frame's output is chosen between the experts (*ours*). 'average': the lower running
+        average of eps_pos* (``expert_memory``). 'recency': the expert whose estimate was recognised
+        under the update gate (eps_pos* < ``update_error_threshold``) on a later frame; where both
+        were last recognised on the same frame, the lower average. Round 74
+        (docs/findings/round-74-the-expert-recognised-more-recently.md).
     """
 
     # -- motion model and particles (Sec. 2, eq. 1) -------------------------------------
@@ -295,6 +301,7 @@ class TrackerParams:
     # -- a second expert (ours; NRMLCTracker.update) ---------------------------------------
     second_expert: Literal["off", "lineage_noise", "every_frame"] = "every_frame"
     expert_memory: float = bounded(0.95, 0, 1, high_open=True)
+    expert_choice: Literal["average", "recency"] = "average"
 
     def __post_init__(self) -> None:
         kinds = _kinds()
@@ -476,7 +483,7 @@ SECTIONS: dict[str, tuple[str, ...]] = {
                     "redetect_weak_radius", "redetect_weak_accept"),
     "generative": ("generative_weight", "generative_candidates", "generative_neighbours", "generative_lam",
                    "generative_interval", "generative_step"),
-    "experts": ("second_expert", "expert_memory"),
+    "experts": ("second_expert", "expert_memory", "expert_choice"),
 }
 
 _dataclass_init = TrackerParams.__init__
