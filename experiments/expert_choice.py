@@ -24,7 +24,8 @@ of a commit before the adoption (``8668979``), whose cached runs the study reads
 the choice at ``expert_memory`` is the default's own output frame by frame (the experts never
 move each other's boxes; tested). A partner other than the default's then gives, exactly and for
 the cost of its single runs, what the default would give with that partner (round 71). The rows
-are always judged against the default's runs.
+are always judged against the default's runs. ``--choice recency`` chooses as ``expert_choice =
+'recency'`` does (round 74).
 """
 from __future__ import annotations
 
@@ -39,12 +40,13 @@ from experiments.screen import (_report, add_run_options, add_target_options, ch
                                 screen_document, screen_row)
 from nrmlc.errors import NrmlcError
 from nrmlc.runner import RunCache
-from nrmlc.tracker.algorithm import choose_expert
+from nrmlc.tracker.algorithm import choose_expert, choose_recent_expert
 from nrmlc.tracker.loop import TrackResult
 from nrmlc.tracker.params import TrackerParams
 
 
-def chosen_boxes(own: TrackResult, partner: TrackResult, memory: float) -> tuple[np.ndarray, np.ndarray]:
+def chosen_boxes(own: TrackResult, partner: TrackResult, memory: float, choice: str = "average",
+                 gate: float = 0.1) -> tuple[np.ndarray, np.ndarray]:
     """The frame-by-frame choice between two runs of one sequence.
 
     Parameters
@@ -53,6 +55,9 @@ def chosen_boxes(own: TrackResult, partner: TrackResult, memory: float) -> tuple
         Runs of the same frames, with ``diagnostics["error_positive"]`` (n_frames,).
     memory : float
         The weight of the past in each run's running average of eps_pos*, in [0, 1).
+    choice : {'average', 'recency'}
+        As ``expert_choice``: under 'recency' the run whose estimate was last under ``gate`` (the
+        update gate) on the later frame, the average's choice where it was the same frame.
 
     Returns
     -------
@@ -66,15 +71,19 @@ def chosen_boxes(own: TrackResult, partner: TrackResult, memory: float) -> tuple
         raise NrmlcError(f"the two runs have {len(own.boxes)} and {len(partner.boxes)} frames")
     errors = np.stack([own.diagnostics["error_positive"], partner.diagnostics["error_positive"]], axis=1)
     average = np.zeros(2)
+    recognised_at = np.zeros(2, dtype=np.int64)
     chosen = np.zeros(len(own.boxes), dtype=np.int64)
     for index in range(1, len(errors)):
         average, chosen[index] = choose_expert(average, errors[index], memory)
+        if choice == "recency":
+            recognised_at[errors[index] < gate] = index
+            chosen[index] = choose_recent_expert(recognised_at, chosen[index])
     return np.where(chosen[:, None] == 1, partner.boxes, own.boxes), chosen
 
 
-def _chosen_run(own: TrackResult, partner: TrackResult, memory: float) -> TrackResult:
+def _chosen_run(own: TrackResult, partner: TrackResult, memory: float, choice: str, gate: float) -> TrackResult:
     """The choice as a run: each frame's box and state from the run chosen on it."""
-    boxes, chosen = chosen_boxes(own, partner, memory)
+    boxes, chosen = chosen_boxes(own, partner, memory, choice, gate)
     return TrackResult(boxes, np.where(chosen[:, None] == 1, partner.states, own.states))
 
 
@@ -86,6 +95,9 @@ def main(argv=None) -> int:
     parser.add_argument("--own", default="", metavar="PARAM=VALUE,...",
                         help="the own expert's configuration: changes of the default (default: the default)")
     parser.add_argument("--memory", type=float, default=0.95, help="weight of the past in the running average")
+    parser.add_argument("--choice", choices=("average", "recency"), default="average",
+                        help="as expert_choice: the lower average, or the expert recognised under the own "
+                             "configuration's update gate on the later frame")
     add_run_options(parser)
     args = parser.parse_args(argv)
     try:
@@ -108,11 +120,14 @@ def main(argv=None) -> int:
 
     own_runs = default_runs if own == TrackerParams() else runs_of(own)
     partner_runs = runs_of(partner)
-    choices = [_chosen_run(mine, other, args.memory) for mine, other in zip(own_runs, partner_runs)]
+    gate = own.update_error_threshold
+    choices = [_chosen_run(mine, other, args.memory, args.choice, gate)
+               for mine, other in zip(own_runs, partner_runs)]
     named = [("partner alone", partner, partner_runs)]
     if own != TrackerParams():
         named.append(("own alone", own, own_runs))
-    named.append((f"the choice (memory {args.memory:g})", partner, choices))
+    named.append((f"the choice (memory {args.memory:g})" if args.choice == "average" else
+                  f"the choice by recency (gate {gate:g}, memory {args.memory:g})", partner, choices))
     base_measures = run_measures(default_runs, default_specs)
     base = overlaps_of(base_measures)
     rows = []

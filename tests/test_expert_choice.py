@@ -29,6 +29,17 @@ def test_the_partner_is_output_only_where_its_average_is_strictly_lower():
     np.testing.assert_array_equal(chosen, [0, 0, 0, 1, 1, 1])
 
 
+def test_recency_outputs_the_run_recognised_on_the_later_frame():
+    # recognised (< 0.1) last on frames (own, partner): 1: (1, 1), 2: (1, 2), 3: (3, 2), 4: (3, 2), 5: (5, 5)
+    own = _run([0, 0.05, 0.5, 0.05, 0.5, 0.05], 0.0)
+    partner = _run([0, 0.05, 0.05, 0.5, 0.2, 0.01], 1.0)
+    _, by_average = expert_choice.chosen_boxes(own, partner, 0.0)
+    np.testing.assert_array_equal(by_average, [0, 0, 1, 0, 1, 1])
+    boxes, chosen = expert_choice.chosen_boxes(own, partner, 0.0, "recency", 0.1)
+    np.testing.assert_array_equal(chosen, [0, 0, 1, 0, 0, 1])  # frame 4: the own was recognised later
+    np.testing.assert_array_equal(boxes, np.where(chosen[:, None] == 1, partner.boxes, own.boxes))
+
+
 def test_runs_of_other_lengths_are_refused():
     with pytest.raises(NrmlcError, match="frames"):
         expert_choice.chosen_boxes(_run([0, 0.1], 0.0), _run([0, 0.1, 0.2], 0.0), 0.5)
