@@ -107,15 +107,14 @@ def executable_text(source: str) -> str:
     Where the spans cut come from the parser and the tokenizer, which agree on them across Python
     versions (the text kept is the source's own, never a dump of the tree)."""
     lines = source.splitlines()
+    spans = []  # ((line, column), (line, column)), 1-based lines, columns in characters
+    for node in ast.walk(ast.parse(source)):
+        if isinstance(node, ast.Expr) and isinstance(node.value, ast.Constant) and isinstance(node.value.value, str):
+            def column(line: int, offset: int) -> int:  # the parser's offsets count UTF-8 bytes
+                return len(lines[line - 1].encode("utf-8")[:offset].decode("utf-8"))
 
-    def position(line: int, offset: int) -> tuple[int, int]:
-        """(line, column in characters) of the parser's (line, offset in UTF-8 bytes)."""
-        return line, len(lines[line - 1].encode("utf-8")[:offset].decode("utf-8"))
-
-    spans = [(position(node.lineno, node.col_offset), position(node.end_lineno, node.end_col_offset))
-             for node in ast.walk(ast.parse(source))
-             if isinstance(node, ast.Expr) and isinstance(node.value, ast.Constant)
-             and isinstance(node.value.value, str)]
+            spans.append(((node.lineno, column(node.lineno, node.col_offset)),
+                          (node.end_lineno, column(node.end_lineno, node.end_col_offset))))
     spans += [(token.start, token.end) for token in tokenize.generate_tokens(text_io.StringIO(source).readline)
               if token.type == tokenize.COMMENT]
     for (first, start), (last, end) in sorted(spans, reverse=True):  # from the end: earlier spans stay put
