@@ -26,7 +26,8 @@ was run. So:
 
 - a rerun skips every job whose file is there (an interrupted grid resumes);
 - changing one parameter recomputes exactly the runs that use it;
-- changing tracker or kernel code recomputes everything it could affect;
+- changing tracker or kernel code recomputes everything it could affect (a comment or a docstring
+  cannot affect a run, so editing one recomputes nothing: :func:`code_version`);
 - files are written atomically (:mod:`nrmlc.io`), so a killed run leaves no
   corrupt result, only missing ones; a file damaged some other way (a full
   disk, a copy cut short), or one that does not hold the whole result the
@@ -45,9 +46,11 @@ that has used GNU OpenMP (numba's threads) cannot fork safely. A Dask
 """
 from __future__ import annotations
 
+import ast
 import concurrent.futures as futures
 import functools
 import hashlib
+import io as text_io
 import json
 import multiprocessing
 import os
@@ -55,6 +58,7 @@ import signal
 import subprocess
 import sys
 import time
+import tokenize
 import warnings
 import zipfile
 from dataclasses import dataclass, field
@@ -83,7 +87,8 @@ _DAMAGED = (zipfile.BadZipFile, OSError, ValueError, EOFError, KeyError)
 
 
 def code_version() -> str:
-    """Hash of every source file that can change a tracking result."""
+    """Hash of every source file that can change a tracking result, as :func:`executable_text`
+    gives it: a comment or docstring edited leaves the version, and the run cache, as they were."""
     root = Path(__file__).resolve().parent
     digest = hashlib.sha256()
     for name in _RESULT_SOURCES:
@@ -91,8 +96,31 @@ def code_version() -> str:
         files = sorted(path.rglob("*.py")) if path.is_dir() else [path]
         for file in files:
             digest.update(str(file.relative_to(root)).encode())
-            digest.update(file.read_bytes())
+            digest.update(executable_text(file.read_bytes().decode("utf-8")).encode())
     return digest.hexdigest()[:16]
+
+
+def executable_text(source: str) -> str:
+    """``source`` (a Python module) without its comments, its string statements (docstrings) and
+    its blank lines, and each line without trailing blanks: what of a file can change a run.
+
+    Where the spans cut come from the parser and the tokenizer, which agree on them across Python
+    versions (the text kept is the source's own, never a dump of the tree)."""
+    lines = source.splitlines()
+
+    def position(line: int, offset: int) -> tuple[int, int]:
+        """(line, column in characters) of the parser's (line, offset in UTF-8 bytes)."""
+        return line, len(lines[line - 1].encode("utf-8")[:offset].decode("utf-8"))
+
+    spans = [(position(node.lineno, node.col_offset), position(node.end_lineno, node.end_col_offset))
+             for node in ast.walk(ast.parse(source))
+             if isinstance(node, ast.Expr) and isinstance(node.value, ast.Constant)
+             and isinstance(node.value.value, str)]
+    spans += [(token.start, token.end) for token in tokenize.generate_tokens(text_io.StringIO(source).readline)
+              if token.type == tokenize.COMMENT]
+    for (first, start), (last, end) in sorted(spans, reverse=True):  # from the end: earlier spans stay put
+        lines[first - 1:last] = [lines[first - 1][:start] + lines[last - 1][end:]]
+    return "\n".join(line.rstrip() for line in lines if line.strip())
 
 
 @functools.cache

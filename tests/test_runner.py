@@ -185,11 +185,20 @@ def test_code_version_follows_the_sources_that_decide_the_boxes(monkeypatch):
     assert version == code_version() and len(version) == 16
     original = Path.read_bytes
     for name in ("coding.py", "algorithm.py", "sequence.py", "synthetic.py", "geometry.py"):
-        def edited(self, name=name):
-            return original(self) + (b"\n# edited" if self.name == name else b"")
+        for addition, changes in ((b"\n# a comment", False), (b'\n"""a docstring"""\n\n', False),
+                                  (b"\nedited = 1", True), (b'\nedited = "# not a comment"', True)):
+            def edited(self, name=name, addition=addition):
+                return original(self) + (addition if self.name == name else b"")
 
-        monkeypatch.setattr(Path, "read_bytes", edited)
-        assert code_version() != version, name
+            monkeypatch.setattr(Path, "read_bytes", edited)
+            assert (code_version() != version) == changes, (name, addition)
+
+
+def test_executable_text_leaves_out_comments_docstrings_and_blank_lines():
+    source = ('"""The module."""\nimport math  # why\n\n\ndef f(x):\n    """Doc, \u00e9."""  # both\n'
+              '    # a whole line\n    y = "a # b"; "c"\n    return x + 1   \n')
+    assert runner.executable_text(source) == 'import math\ndef f(x):\n    y = "a # b";\n    return x + 1'
+    assert runner.executable_text(source.replace("x + 1", "x + 2")) != runner.executable_text(source)
 
 
 def test_run_keys_are_pinned():

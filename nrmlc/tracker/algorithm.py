@@ -375,8 +375,8 @@ class NRMLCTracker:
         return result.box
 
     def _new_partner(self) -> "NRMLCTracker":
-        """The second expert (``second_expert``): a tracker of this class's own kind, with the same
-        seed and :meth:`TrackerParams.partner_params`."""
+        """The second expert (``second_expert``): an :class:`NRMLCTracker` (whatever this tracker's
+        class) with the same seed and :meth:`TrackerParams.partner_params`."""
         return NRMLCTracker(self.seed, self.params.partner_params())
 
     def _output_of_the_experts(self, image, own: FrameResult) -> np.ndarray:
