@@ -100,12 +100,15 @@ def code_version() -> str:
     return digest.hexdigest()[:16]
 
 
+@functools.lru_cache(maxsize=256)
 def executable_text(source: str) -> str:
     """``source`` (a Python module) without its comments, its string statements (docstrings) and
     its blank lines, and each line without trailing blanks: what of a file can change a run.
 
     Where the spans cut come from the parser and the tokenizer, which agree on them across Python
-    versions (the text kept is the source's own, never a dump of the tree)."""
+    versions (the text kept is the source's own, never a dump of the tree). Memoised on the text:
+    :func:`code_version` reads the files every time (an edit is seen) but parses each text once,
+    where a process makes several run caches (a grid, the tests)."""
     lines = source.splitlines()
 
     def position(line: int, offset: int) -> tuple[int, int]:
