@@ -138,6 +138,16 @@ def usable_boxes(boxes: np.ndarray) -> np.ndarray:
         return np.isfinite(boxes).all(axis=-1) & (boxes[..., 2] > 0) & (boxes[..., 3] > 0)
 
 
+def box_iou(first: np.ndarray, second: np.ndarray) -> float:
+    """Intersection over union of two boxes ``(x, y, w, h)`` with ``w, h > 0``, as continuous
+    rectangles (what :func:`nrmlc.metrics.overlaps` gives them; the tracker's own, for
+    ``expert_blend_iou``)."""
+    width = min(first[0] + first[2], second[0] + second[2]) - max(first[0], second[0])
+    height = min(first[1] + first[3], second[1] + second[3]) - max(first[1], second[1])
+    inter = max(width, 0.0) * max(height, 0.0)
+    return float(inter / (first[2] * first[3] + second[2] * second[3] - inter))
+
+
 def box_to_state(boxes: np.ndarray, patch_size: int = PATCH_SIZE) -> np.ndarray:
     """States of 1-based OTB boxes (rotation = skew = 0).
 

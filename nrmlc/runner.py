@@ -185,7 +185,7 @@ def frames_tracked(sequence, n_frames: int | None) -> int:
 #: 63-64 for ``second_expert``, whose 'off' is the ``paper`` preset's and the default's before round 64).
 SWITCHES_ADDED_LATER: dict[str, object] = {"translation_floor": 0.0, "brightness": "raw", "redetect_trigger": 0.99,
                                            "redetect_weak_radius": 100.0, "redetect_weak_accept": 1.0,
-                                           "second_expert": "off"}
+                                           "second_expert": "off", "expert_blend_iou": 1.0}
 
 
 def params_for_key(params: TrackerParams) -> dict:

@@ -7,12 +7,17 @@ import pytest
 from nrmlc import NRMLCTracker, TrackerParams
 from nrmlc.data import SyntheticSequence, SyntheticSpec
 from nrmlc.errors import ParameterError
+from nrmlc.geometry import box_iou
+from nrmlc.metrics import overlaps
+from nrmlc.tracker.algorithm import blend_experts
 from nrmlc.tracker.loop import track_sequence
 from nrmlc.tracker.params import LINEAGE_MOTION_SIGMAS
 
 # No floor: on a small synthetic target the floor makes the two motion models the same 4 px.
-# One tracker unless a test names its second expert (the default has one since round 64).
-SETTINGS = dict(n_particles=120, redetect_count=60, translation_floor=0.0, second_expert="off")
+# One tracker unless a test names its second expert (the default has one since round 64); the
+# output the chosen expert's box unless a test names the blend (the default's since round 76).
+SETTINGS = dict(n_particles=120, redetect_count=60, translation_floor=0.0, second_expert="off",
+                expert_blend_iou=1.0)
 
 
 @pytest.fixture(scope="module")
@@ -45,6 +50,61 @@ def test_the_output_is_the_expert_with_the_lower_average_error(sequence, kind, m
     np.testing.assert_array_equal(pair.states, np.where(chosen[:, None] == 1, partner.states, own.states))
     np.testing.assert_array_equal(pair.diagnostics["error_positive"][1:],
                                   errors[np.arange(len(errors)), chosen][1:])
+
+
+def _chosen(errors, memory):
+    average, chosen = np.zeros(2), [0]
+    for row in errors[1:]:
+        average = memory * average + (1 - memory) * row
+        chosen.append(int(average[1] < average[0]))
+    return np.array(chosen)
+
+
+@pytest.mark.parametrize("min_iou", [0.5, 0.85])
+def test_where_the_experts_agree_the_output_is_their_blend(sequence, min_iou):
+    """The oracle: the two experts run apart; on each frame whose two boxes overlap at IoU >=
+    min_iou, the centre is the mean of theirs and the size their geometric mean, weighted by the
+    other's eps_pos*; elsewhere the chosen one's box (round 76)."""
+    pair = _run(sequence, second_expert="every_frame", expert_blend_iou=min_iou)
+    own, partner = _run(sequence), _run(sequence, update_interval=1)
+    errors = np.stack([own.diagnostics["error_positive"], partner.diagnostics["error_positive"]], axis=1)
+    chosen = _chosen(errors, 0.95)
+    expected = np.where(chosen[:, None] == 1, partner.boxes, own.boxes)
+    iou = overlaps(own.boxes, partner.boxes)
+    blended = (iou >= min_iou) & (np.arange(len(iou)) > 0)
+    assert blended.any() and (min_iou < 0.8 or not blended[1:].all())  # at 0.85 some frames are not blended
+    weight = errors[:, 0] / errors.sum(axis=1)  # the partner's
+    centres = (1 - weight)[:, None] * (own.boxes[:, :2] + own.boxes[:, 2:] / 2) + \
+        weight[:, None] * (partner.boxes[:, :2] + partner.boxes[:, 2:] / 2)
+    sizes = own.boxes[:, 2:] ** (1 - weight)[:, None] * partner.boxes[:, 2:] ** weight[:, None]
+    expected[blended] = np.concatenate([centres - sizes / 2, sizes], axis=1)[blended]
+    np.testing.assert_allclose(pair.boxes, expected, rtol=0, atol=1e-9)
+    np.testing.assert_array_equal(pair.boxes[~blended], expected[~blended])  # the choice, to the bit
+    np.testing.assert_array_equal(pair.diagnostics["expert"][1:], chosen[1:])
+    np.testing.assert_allclose(pair.states[blended][:, [0, 1, 2, 4]],
+                               np.stack([centres[:, 0] - 1, centres[:, 1] - 1, sizes[:, 0] / 32,
+                                         sizes[:, 1] / sizes[:, 0]], axis=1)[blended], atol=1e-9)
+
+
+def test_the_blend_weighs_the_better_recognised_expert_more():
+    boxes = np.array([[10.0, 20.0, 40.0, 20.0], [14.0, 20.0, 10.0, 20.0]])
+    np.testing.assert_allclose(blend_experts(boxes, np.array([0.0, 0.3]), 0.0), boxes[0])  # own exact
+    np.testing.assert_allclose(blend_experts(boxes, np.array([0.3, 0.0]), 0.0), boxes[1])
+    # Both exact: one half each; centres (30, 30) and (19, 30), sizes 40 x 20 and 10 x 20.
+    np.testing.assert_allclose(blend_experts(boxes, np.array([0.0, 0.0]), 0.0), [14.5, 20.0, 20.0, 20.0])
+    # eps_pos* 0.1 and 0.3: the partner's weight 0.25.
+    np.testing.assert_allclose(blend_experts(boxes, np.array([0.1, 0.3]), 0.25)[[0, 2]],
+                               [27.25 - 40 ** 0.75 * 10 ** 0.25 / 2, 40 ** 0.75 * 10 ** 0.25])
+    assert blend_experts(boxes, np.array([0.1, 0.1]), 0.9) is None  # IoU 0.25 < 0.9
+    assert blend_experts(boxes, np.array([0.1, 0.1]), 1.0) is None  # 1: never, even for one box
+    assert blend_experts(boxes[[0, 0]], np.array([0.1, 0.1]), 1.0) is None
+
+
+def test_the_tracker_s_iou_is_the_metrics_one():
+    rng = np.random.default_rng(0)
+    for _ in range(200):
+        a, b = rng.uniform(0, 50, 4) + [0, 0, 0.5, 0.5], rng.uniform(0, 50, 4) + [0, 0, 0.5, 0.5]
+        assert box_iou(a, b) == pytest.approx(float(overlaps(a, b)), abs=1e-15)
 
 
 def test_off_is_one_tracker_and_the_partner_has_the_lineage_motion():

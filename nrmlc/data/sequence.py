@@ -356,6 +356,7 @@ def _check_init_box(box: SequenceType[float], where: str) -> np.ndarray:
         values = np.asarray(box, dtype=np.float64).ravel()
     except (TypeError, ValueError):
         values = np.empty(0)
-    if isinstance(box, (str, bytes, dict)) or values.shape != (4,) or not np.isfinite(values).all() or values[2] <= 0 or values[3] <= 0:
+    if (isinstance(box, (str, bytes, dict)) or values.shape != (4,) or not np.isfinite(values).all()
+            or values[2] <= 0 or values[3] <= 0):
         raise ParameterError(f"{where}: initial box must be 4 finite numbers x,y,w,h with w,h > 0, got {box!r}")
     return values

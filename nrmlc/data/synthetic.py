@@ -117,7 +117,8 @@ class SyntheticSpec:
             if field_name != "name" and field_name not in integers and (
                     isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating))
                     or not np.isfinite(value)):
-                raise ParameterError(f"SyntheticSpec {self.name!r}: {field_name} must be a finite number, got {value!r}")
+                raise ParameterError(f"SyntheticSpec {self.name!r}: {field_name} must be a finite number, "
+                                     f"got {value!r}")
         checks = [
             (self.seed >= 0, "seed must be >= 0"),
             (2 <= self.n_frames <= MAX_FRAMES, f"n_frames must be in 2..{MAX_FRAMES}"),
@@ -463,8 +464,8 @@ def suite_specs(
 ) -> list[SyntheticSpec]:
     """The specs of :func:`synthetic_suite` (same arguments), without building any sequence:
     for callers that build and write them one at a time (``nrmlc synth``)."""
-    for name, value, low, high in (("n_sequences", n_sequences, 1, MAX_SEQUENCES), ("n_frames", n_frames, 2, MAX_FRAMES),
-                                   ("seed", seed, 0, 2**63 - 1)):
+    for name, value, low, high in (("n_sequences", n_sequences, 1, MAX_SEQUENCES),
+                                   ("n_frames", n_frames, 2, MAX_FRAMES), ("seed", seed, 0, 2**63 - 1)):
         if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or not low <= value <= high:
             raise ParameterError(f"synthetic_suite: {name} must be an integer in {low}..{high}, got {value!r}")
     if isinstance(size, (str, bytes)) or len(size) != 2 or any(

@@ -284,7 +284,8 @@ def template_gram(templates: np.ndarray, previous: np.ndarray | None = None,
     stayed = np.flatnonzero(kept >= 0)
     new = np.ascontiguousarray(templates[fresh])
     old = np.ascontiguousarray(templates[stayed])
-    products = {"new": np.empty((0, 0), dtype=templates.dtype), "stayed": np.empty((fresh.size, 0), dtype=templates.dtype)}
+    products = {"new": np.empty((0, 0), dtype=templates.dtype),
+                "stayed": np.empty((fresh.size, 0), dtype=templates.dtype)}
 
     def among_new() -> None:
         # numpy runs ``a @ a.T`` as a syrk (half the work of a product).

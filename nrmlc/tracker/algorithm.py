@@ -26,7 +26,8 @@ Per frame:
 7. with a second expert (*ours*, ``second_expert``; off in the paper, on by default since round
    64), a second tracker with an update every frame (or the lineage's motion model) does steps
    1-6 on its own, and the frame's output is the estimate of the one whose running average of
-   eps_pos* is lower.
+   eps_pos* is lower; where the two experts' boxes agree (IoU >= ``expert_blend_iou``), their
+   blend (round 76).
 """
 from __future__ import annotations
 
@@ -39,8 +40,8 @@ import numpy as np
 
 from nrmlc.data.image import as_gray_frame
 from nrmlc.errors import ParameterError
-from nrmlc.geometry import (MIN_BOX_SIZE, as_box, box_to_state, clamp_states, clip_initial_box, state_to_affine,
-                            state_to_box, usable_boxes)
+from nrmlc.geometry import (MIN_BOX_SIZE, as_box, box_iou, box_to_state, clamp_states, clip_initial_box,
+                            state_to_affine, state_to_box, usable_boxes)
 from nrmlc.kernels.coding import code_candidates
 from nrmlc.kernels.distance import candidate_template_dots, template_gram
 from nrmlc.kernels.warp import warp_patches
@@ -188,6 +189,39 @@ def choose_expert(average: np.ndarray, errors: np.ndarray, memory: float) -> tup
     """
     average = memory * average + (1.0 - memory) * errors
     return average, int(average[1] < average[0])
+
+
+def blend_experts(boxes: np.ndarray, errors: np.ndarray, min_iou: float) -> np.ndarray | None:
+    """The blend of the two experts' boxes where they agree (``expert_blend_iou``): two estimates
+    of one box whose errors are partly independent, so their mean is nearer the truth than either
+    (round 76).
+
+    Parameters
+    ----------
+    boxes : (2, 4) float64
+        The own and the second expert's boxes ``x, y, w, h`` (w, h > 0).
+    errors : (2,) float64
+        This frame's eps_pos* of each (>= 0).
+    min_iou : float
+        The least IoU of the two boxes that blends them; 1 never blends.
+
+    Returns
+    -------
+    box : (4,) float64 or None
+        None where the boxes overlap less than ``min_iou``; else the centre the weighted mean of
+        the two centres and the width and height the weighted geometric means, the second
+        expert's weight ``errors[0] / errors.sum()`` (the better recognised one weighs more; one
+        half where both are 0).
+    """
+    if min_iou >= 1 or box_iou(boxes[0], boxes[1]) < min_iou:
+        return None
+    total = errors[0] + errors[1]
+    weight = 0.5 if total <= 0 else errors[0] / total
+    weights = np.array([1.0 - weight, weight])
+    centres = boxes[:, :2] + boxes[:, 2:] / 2
+    centre = weights @ centres
+    size = np.exp(weights @ np.log(boxes[:, 2:]))
+    return np.concatenate([centre - size / 2, size])
 
 
 def _exp_or_inf(value: float) -> float:
@@ -381,14 +415,19 @@ class NRMLCTracker:
 
     def _output_of_the_experts(self, image, own: FrameResult) -> np.ndarray:
         """Track ``image`` with the second expert too, and make the output (``last``, the returned
-        box) the estimate of the expert whose average eps_pos* is lower (the own one on a tie).
-        Each expert goes on from its own estimate: the choice changes only what is reported."""
+        box) the estimate of the expert whose average eps_pos* is lower (the own one on a tie), or
+        the two's blend where their boxes overlap at IoU >= ``expert_blend_iou`` (``last`` then the
+        chosen expert's result with the blended box and its state). Each expert goes on from its
+        own estimate: the choice and the blend change only what is reported."""
         self.partner._update(image)
         errors = np.array([own.error_positive, self.partner.last.error_positive])
         self.expert_errors, chosen = choose_expert(self.expert_errors, errors, self.params.expert_memory)
         if chosen == 1:
             self.last = dataclasses.replace(self.partner.last, expert=1)
             self.last_coding = self.partner.last_coding
+        box = blend_experts(np.stack([own.box, self.partner.last.box]), errors, self.params.expert_blend_iou)
+        if box is not None:
+            self.last = dataclasses.replace(self.last, box=box, state=box_to_state(box, self.params.patch_size))
         return self.last.box
 
     def move_to(self, box) -> None:

@@ -48,7 +48,8 @@ class TrackResult:
 
     def to_arrays(self) -> dict:
         arrays = {"boxes": self.boxes, "states": self.states,
-                  "seconds_tracking": np.float64(self.seconds_tracking), "seconds_total": np.float64(self.seconds_total)}
+                  "seconds_tracking": np.float64(self.seconds_tracking),
+                  "seconds_total": np.float64(self.seconds_total)}
         arrays.update({f"diag_{k}": v for k, v in self.diagnostics.items()})
         return arrays
 

@@ -237,6 +237,12 @@ class TrackerParams:
         lineage's motion as partner did not hold (round 63).
     expert_memory : float
         The weight of the past in each expert's average eps_pos* (*ours*: 0.95, about 20 frames).
+    expert_blend_iou : float
+        Where the two experts' boxes overlap at least this much (IoU), the output is their blend
+        (:func:`nrmlc.tracker.algorithm.blend_experts`) in place of the chosen one; 1 (off, today's
+        choice on every frame before round 76) never blends. *Ours*: 0.5 since round 76 (offline and
+        exact; seeds 385-389: A +0.003 ± 0.001, B +0.004 ± 0.001; named check 390-394: A +0.003 ±
+        0.000, B +0.003 ± 0.001; docs/DEVIATIONS.md). Without a second expert it does nothing.
     """
 
     # -- motion model and particles (Sec. 2, eq. 1) -------------------------------------
@@ -295,6 +301,7 @@ class TrackerParams:
     # -- a second expert (ours; NRMLCTracker.update) ---------------------------------------
     second_expert: Literal["off", "lineage_noise", "every_frame"] = "every_frame"
     expert_memory: float = bounded(0.95, 0, 1, high_open=True)
+    expert_blend_iou: float = bounded(0.5, 0, 1)
 
     def __post_init__(self) -> None:
         kinds = _kinds()
@@ -363,11 +370,13 @@ class TrackerParams:
             # the template Gram and the one it is updated from
             "max_positive, n_negative": 3.0 * templates**2 * 8,
             # the solvers' work arrays per candidate
-            "n_particles, redetect_count, dictionary_sizes": candidates * (len(self.dictionary_sizes) + 4) * k * k * 8 * 4,
+            "n_particles, redetect_count, dictionary_sizes": (candidates * (len(self.dictionary_sizes) + 4) * k * k
+                                                              * 8 * 4),
         }
         if self.generative_weight > 0:
             terms["generative_candidates, patch_size, generative_step"] = (
-                self.generative_candidates * local * (N_ATOMS * 4 + LOCAL_SIZE**2 * 4 + self.generative_neighbours * 24))
+                self.generative_candidates * local
+                * (N_ATOMS * 4 + LOCAL_SIZE**2 * 4 + self.generative_neighbours * 24))
             terms["patch_size"] = atoms_grid * LOCAL_SIZE**2 * 8 * 3  # the local atoms' source patches
         return terms
 
@@ -459,7 +468,7 @@ PRESETS: dict[str, dict] = {
                   update_interval=5, update_error_threshold=0.1, redetect_count=0, redetect_trigger=0.99,
                   redetect_weak_radius=100.0, redetect_weak_accept=1.0,
                   generative_weight=0.0, n_particles=600, translation_floor=0.0, n_negative=150,
-                  brightness="raw", second_expert="off"),
+                  brightness="raw", second_expert="off", expert_blend_iou=1.0),
 }
 
 
@@ -476,7 +485,7 @@ SECTIONS: dict[str, tuple[str, ...]] = {
                     "redetect_weak_radius", "redetect_weak_accept"),
     "generative": ("generative_weight", "generative_candidates", "generative_neighbours", "generative_lam",
                    "generative_interval", "generative_step"),
-    "experts": ("second_expert", "expert_memory"),
+    "experts": ("second_expert", "expert_memory", "expert_blend_iou"),
 }
 
 _dataclass_init = TrackerParams.__init__
