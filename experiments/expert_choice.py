@@ -1,13 +1,16 @@
 """Offline: two configurations' runs side by side, the output on each frame chosen by eps_pos*.
 
-``python -m experiments.expert_choice --seeds 335-344 --partner update_interval=1 [--memory 0.95]``
-``python -m experiments.expert_choice --seeds 370-374 --own second_expert=off --partner second_expert=off,update_interval=1``
+``python -m experiments.expert_choice --seeds 335-344 --partner update_interval=1 [--memory 0.95] [--blend-iou 0.5]``
+``python -m experiments.expert_choice --seeds 370-374 --own second_expert=off
+--partner second_expert=off,update_interval=1``
 
 For every development target and seed, the default's run and a partner configuration's run (from
 the run cache, computed where missing) are joined frame by frame: each run keeps a running average
 of its estimate's eps_pos* (``average = memory * average + (1 - memory) * eps_pos*``, from 0 at the
 first frame), and the output is the partner's box where its average is strictly lower, the
-default's elsewhere. The choice is causal and changes neither run, so it measures, before anything
+default's elsewhere; where the two boxes overlap at IoU >= ``--blend-iou`` (the default's
+``expert_blend_iou``, 0.5 since round 76; 1: never), their blend
+(:func:`nrmlc.tracker.algorithm.blend_experts`). The choice is causal and changes neither run, so it measures, before anything
 is built, what a second expert beside the tracker would give (rounds 63 and 64,
 docs/findings/round-63-a-second-expert.md). It prints, as ``experiments.screen`` does, the paired
 difference to the default on half A, half B and the synthetic suite with the adoption rule's
@@ -21,7 +24,7 @@ of a commit before the adoption (``8668979``), whose cached runs the study reads
 
 ``--own`` makes the own expert a configuration of its own (changes of the default): with
 ``--own second_expert=off`` the two runs are the default's two experts, each tracking alone, and
-the choice at ``expert_memory`` is the default's own output frame by frame (the experts never
+the choice at ``expert_memory`` and ``expert_blend_iou`` is the default's own output frame by frame (the experts never
 move each other's boxes; tested). A partner other than the default's then gives, exactly and for
 the cost of its single runs, what the default would give with that partner (round 71). The rows
 are always judged against the default's runs.
@@ -39,13 +42,15 @@ from experiments.screen import (_report, add_run_options, add_target_options, ch
                                 screen_document, screen_row)
 from nrmlc.errors import NrmlcError
 from nrmlc.runner import RunCache
-from nrmlc.tracker.algorithm import choose_expert
+from nrmlc.geometry import box_to_state
+from nrmlc.tracker.algorithm import blend_experts, choose_expert
 from nrmlc.tracker.loop import TrackResult
 from nrmlc.tracker.params import TrackerParams
 
 
-def chosen_boxes(own: TrackResult, partner: TrackResult, memory: float) -> tuple[np.ndarray, np.ndarray]:
-    """The frame-by-frame choice between two runs of one sequence.
+def chosen_boxes(own: TrackResult, partner: TrackResult, memory: float,
+                 blend_iou: float = 1.0) -> tuple[np.ndarray, np.ndarray]:
+    """The frame-by-frame choice between two runs of one sequence, as the tracker makes it.
 
     Parameters
     ----------
@@ -53,29 +58,47 @@ def chosen_boxes(own: TrackResult, partner: TrackResult, memory: float) -> tuple
         Runs of the same frames, with ``diagnostics["error_positive"]`` (n_frames,).
     memory : float
         The weight of the past in each run's running average of eps_pos*, in [0, 1).
+    blend_iou : float
+        Where the two boxes overlap at least this much, the output is their blend (``expert_blend_iou``;
+        1, the default here: never).
 
     Returns
     -------
     boxes : (n_frames, 4) float64
         The partner's box where its average is strictly lower, the own one elsewhere (frame 0:
-        the own, the initial box of both).
+        the own, the initial box of both), or the blend.
     chosen : (n_frames,) int64
-        1 where the partner's box is output, 0 elsewhere.
+        1 where the partner is the chosen expert, 0 elsewhere.
     """
+    boxes, chosen, _ = _choose(own, partner, memory, blend_iou)
+    return boxes, chosen
+
+
+def _choose(own: TrackResult, partner: TrackResult, memory: float,
+            blend_iou: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`chosen_boxes`, and (n_frames,) bool: where the output is the blend."""
     if len(own.boxes) != len(partner.boxes):
         raise NrmlcError(f"the two runs have {len(own.boxes)} and {len(partner.boxes)} frames")
     errors = np.stack([own.diagnostics["error_positive"], partner.diagnostics["error_positive"]], axis=1)
     average = np.zeros(2)
     chosen = np.zeros(len(own.boxes), dtype=np.int64)
+    boxes = np.array(own.boxes, dtype=np.float64)
+    blended = np.zeros(len(boxes), dtype=bool)
     for index in range(1, len(errors)):
         average, chosen[index] = choose_expert(average, errors[index], memory)
-    return np.where(chosen[:, None] == 1, partner.boxes, own.boxes), chosen
+        pair = np.stack([own.boxes[index], partner.boxes[index]])
+        blend = blend_experts(pair, errors[index], blend_iou)
+        boxes[index] = pair[chosen[index]] if blend is None else blend
+        blended[index] = blend is not None
+    return boxes, chosen, blended
 
 
-def _chosen_run(own: TrackResult, partner: TrackResult, memory: float) -> TrackResult:
-    """The choice as a run: each frame's box and state from the run chosen on it."""
-    boxes, chosen = chosen_boxes(own, partner, memory)
-    return TrackResult(boxes, np.where(chosen[:, None] == 1, partner.states, own.states))
+def _chosen_run(own: TrackResult, partner: TrackResult, memory: float, blend_iou: float) -> TrackResult:
+    """The choice as a run: each frame's box and state from the run chosen on it, or the blend's."""
+    boxes, chosen, blended = _choose(own, partner, memory, blend_iou)
+    states = np.where(chosen[:, None] == 1, partner.states, own.states)
+    states[blended] = box_to_state(boxes[blended])
+    return TrackResult(boxes, states)
 
 
 def main(argv=None) -> int:
@@ -86,13 +109,20 @@ def main(argv=None) -> int:
     parser.add_argument("--own", default="", metavar="PARAM=VALUE,...",
                         help="the own expert's configuration: changes of the default (default: the default)")
     parser.add_argument("--memory", type=float, default=0.95, help="weight of the past in the running average")
+    parser.add_argument("--blend-iou", type=float, default=TrackerParams().expert_blend_iou,
+                        help="blend the two boxes where they overlap at least this much (1: never; default: "
+                             "the default's expert_blend_iou)")
     add_run_options(parser)
     args = parser.parse_args(argv)
     try:
         try:
-            TrackerParams(expert_memory=args.memory)  # the parameter's own bounds
+            TrackerParams(expert_memory=args.memory)  # the parameters' own bounds
         except NrmlcError as error:
             raise NrmlcError(f"--memory: {error}") from None
+        try:
+            TrackerParams(expert_blend_iou=args.blend_iou)
+        except NrmlcError as error:
+            raise NrmlcError(f"--blend-iou: {error}") from None
         partner = parse_variant("partner", args.partner, "default")
         own = parse_variant("own", args.own, "default")
         seeds, sequences, groups = chosen_targets(args)
@@ -108,11 +138,12 @@ def main(argv=None) -> int:
 
     own_runs = default_runs if own == TrackerParams() else runs_of(own)
     partner_runs = runs_of(partner)
-    choices = [_chosen_run(mine, other, args.memory) for mine, other in zip(own_runs, partner_runs)]
+    choices = [_chosen_run(mine, other, args.memory, args.blend_iou) for mine, other in zip(own_runs, partner_runs)]
     named = [("partner alone", partner, partner_runs)]
     if own != TrackerParams():
         named.append(("own alone", own, own_runs))
-    named.append((f"the choice (memory {args.memory:g})", partner, choices))
+    blend = "" if args.blend_iou >= 1 else f", blend at IoU >= {args.blend_iou:g}"
+    named.append((f"the choice (memory {args.memory:g}{blend})", partner, choices))
     base_measures = run_measures(default_runs, default_specs)
     base = overlaps_of(base_measures)
     rows = []

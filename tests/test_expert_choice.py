@@ -29,6 +29,20 @@ def test_the_partner_is_output_only_where_its_average_is_strictly_lower():
     np.testing.assert_array_equal(chosen, [0, 0, 0, 1, 1, 1])
 
 
+def test_boxes_that_agree_are_blended_as_the_tracker_blends_them():
+    own = _run([0, 0.1, 0.1, 0.3], 0.0)
+    partner = _run([0, 0.3, 0.1, 0.1], 1.0)  # boxes 20 and 21 px wide, 1 px apart: IoU 361 / 480
+    boxes, chosen = expert_choice.chosen_boxes(own, partner, 0.0, blend_iou=0.75)
+    np.testing.assert_array_equal(chosen, [0, 0, 0, 1])
+    np.testing.assert_array_equal(boxes[0], own.boxes[0])  # frame 0: the initial box
+    weight = np.array([0.25, 0.5, 0.75])  # the partner's: own eps_pos* / the sum
+    size = 20.0 ** (1 - weight) * 21.0 ** weight
+    centre = 20.0 + 1.5 * weight  # 20 and 21.5
+    np.testing.assert_allclose(boxes[1:], np.stack([centre - size / 2] * 2 + [size] * 2, axis=1))
+    boxes, _ = expert_choice.chosen_boxes(own, partner, 0.0, blend_iou=0.76)  # 0.752 < 0.76: the choice
+    np.testing.assert_array_equal(boxes, np.where(chosen[:, None] == 1, partner.boxes, own.boxes))
+
+
 def test_runs_of_other_lengths_are_refused():
     with pytest.raises(NrmlcError, match="frames"):
         expert_choice.chosen_boxes(_run([0, 0.1], 0.0), _run([0, 0.1, 0.2], 0.0), 0.5)
@@ -41,13 +55,14 @@ def test_the_study_reports_the_partner_and_the_choice(tmp_path, capsys):
                                "--json", str(out), "--jobs", "1"])
     assert code == 0
     names = [row["name"] for row in json.loads(out.read_text())["variants"]]
-    assert names == ["partner alone", "the choice (memory 0.95)"]
+    assert names == ["partner alone", "the choice (memory 0.95, blend at IoU >= 0.5)"]
     assert "the choice" in capsys.readouterr().out
 
 
-def test_a_memory_outside_its_range_is_one_line(capsys):
-    assert expert_choice.main(["--partner", "translation_floor=0", "--memory", "1"]) == 2
-    assert "--memory" in capsys.readouterr().err
+@pytest.mark.parametrize("option, value", [("--memory", "1"), ("--blend-iou", "1.5")])
+def test_a_value_outside_its_range_is_one_line(capsys, option, value):
+    assert expert_choice.main(["--partner", "translation_floor=0", option, value]) == 2
+    assert option in capsys.readouterr().err
 
 
 def test_the_default_s_two_experts_run_alone_and_chosen_give_the_default(tmp_path):
@@ -61,6 +76,6 @@ def test_the_default_s_two_experts_run_alone_and_chosen_give_the_default(tmp_pat
     assert code == 0
     document = json.loads(out.read_text())
     rows = {row["name"]: row for row in document["variants"]}
-    assert list(rows) == ["partner alone", "own alone", "the choice (memory 0.95)"]
-    assert rows["the choice (memory 0.95)"]["per_seed"] == document["baseline_per_seed"]
+    assert list(rows) == ["partner alone", "own alone", "the choice (memory 0.95, blend at IoU >= 0.5)"]
+    assert rows["the choice (memory 0.95, blend at IoU >= 0.5)"]["per_seed"] == document["baseline_per_seed"]
     assert any(rows[name]["per_seed"] != document["baseline_per_seed"] for name in ("partner alone", "own alone"))

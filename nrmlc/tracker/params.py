@@ -229,7 +229,8 @@ class TrackerParams:
         pixels, :data:`LINEAGE_MOTION_SIGMAS`), under 'every_frame' a template update every
         frame (``update_interval = 1``). It has its own particles and templates; both track
         every frame apart, and each frame's output is the estimate of the one whose recent
-        eps_pos* (an exponential average, ``expert_memory``) is lower
+        eps_pos* (an exponential average, ``expert_memory``) is lower, or the two's blend where
+        their boxes agree (``expert_blend_iou``)
         (:meth:`nrmlc.tracker.algorithm.NRMLCTracker.update`). It costs about two and a half
         times one tracker's time (the partner's template update every frame; docs/PERFORMANCE.md).
         *Ours*: 'every_frame' since round 64 (seeds 350-354: A +0.017 ± 0.014, B +0.012 ± 0.005;
@@ -239,8 +240,8 @@ class TrackerParams:
         The weight of the past in each expert's average eps_pos* (*ours*: 0.95, about 20 frames).
     expert_blend_iou : float
         Where the two experts' boxes overlap at least this much (IoU), the output is their blend
-        (:func:`nrmlc.tracker.algorithm.blend_experts`) in place of the chosen one; 1 (off, today's
-        choice on every frame before round 76) never blends. *Ours*: 0.5 since round 76 (offline and
+        (:func:`nrmlc.tracker.algorithm.blend_experts`) in place of the chosen one's box; 1 (off:
+        the chosen expert's box on every frame, the default of rounds 64-75) never blends. *Ours*: 0.5 since round 76 (offline and
         exact; seeds 385-389: A +0.003 ± 0.001, B +0.004 ± 0.001; named check 390-394: A +0.003 ±
         0.000, B +0.003 ± 0.001; docs/DEVIATIONS.md). Without a second expert it does nothing.
     """
