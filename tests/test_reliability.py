@@ -154,12 +154,19 @@ def _variants(gray: np.ndarray) -> dict[str, np.ndarray]:
 
 
 def test_pixel_formats_through_the_tracker(textured_frames):
-    """The same scene as gray, BGR, BGRA, 8 or 16 bit gives the same boxes."""
+    """The same scene as gray, BGR, BGRA, 8 or 16 bit gives the same boxes: to the bit for 8-bit
+    gray with a channel axis or an alpha; from colour or 16 bits to float32's rounding (OpenCV's
+    luma weights sum to 1, and 257 / 65535 is 1 / 255, only to that precision), which the experts'
+    blend (``expert_blend_iou``) carries into the boxes through its eps_pos* weights (the chosen
+    expert's box alone did not)."""
     frames, box = textured_frames
     _, reference = track_frames(frames, box)
     for name in _variants(frames[0]):
         _, boxes = track_frames([_variants(f)[name] for f in frames], box)
-        np.testing.assert_array_equal(boxes, reference, err_msg=name)
+        if name in ("gray-hw1", "gray-alpha"):
+            np.testing.assert_array_equal(boxes, reference, err_msg=name)
+        else:
+            np.testing.assert_allclose(boxes, reference, rtol=1e-6, atol=0, err_msg=name)
     _, boxes = track_frames([f.astype(np.float64) for f in frames], box)  # float, any scale
     np.testing.assert_allclose(boxes[0], reference[0])
 
@@ -181,8 +188,9 @@ def test_pixel_formats_through_sequence_folders(textured_frames, tmp_path):
         result = track_sequence(sequence, params, seed=0)
         assert np.isfinite(result.boxes).all()
         results[name] = result.boxes
-    np.testing.assert_array_equal(results["gray16"], results["gray"])
-    np.testing.assert_array_equal(results["bgr16"], results["bgr"])
+    # 16 bits as 8: to float32's rounding of the scale (test_pixel_formats_through_the_tracker)
+    np.testing.assert_allclose(results["gray16"], results["gray"], rtol=1e-6, atol=0)
+    np.testing.assert_allclose(results["bgr16"], results["bgr"], rtol=1e-6, atol=0)
 
 
 # ------------------------------------------------------ bad input (library)
