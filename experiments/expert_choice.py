@@ -10,9 +10,9 @@ of its estimate's eps_pos* (``average = memory * average + (1 - memory) * eps_po
 first frame), and the output is the partner's box where its average is strictly lower, the
 default's elsewhere; where the two boxes overlap at IoU >= ``--blend-iou`` (the default's
 ``expert_blend_iou``, 0.5 since round 76; 1: never), their blend
-(:func:`nrmlc.tracker.algorithm.blend_experts`). The choice is causal and changes neither run, so it measures, before anything
-is built, what a second expert beside the tracker would give (rounds 63 and 64,
-docs/findings/round-63-a-second-expert.md). It prints, as ``experiments.screen`` does, the paired
+(:func:`nrmlc.tracker.algorithm.blend_experts`). The choice is causal and changes neither run, so
+it measures, before anything is built, what a second expert beside the tracker would give
+(rounds 63 and 64, docs/findings/round-63-a-second-expert.md). It prints, as ``experiments.screen`` does, the paired
 difference to the default on half A, half B and the synthetic suite with the adoption rule's
 verdict, for the partner alone and for the choice. It chooses nothing by itself: a second expert
 is judged by a screen of the tracker at seeds the study did not use.
@@ -24,8 +24,8 @@ of a commit before the adoption (``8668979``), whose cached runs the study reads
 
 ``--own`` makes the own expert a configuration of its own (changes of the default): with
 ``--own second_expert=off`` the two runs are the default's two experts, each tracking alone, and
-the choice at ``expert_memory`` and ``expert_blend_iou`` is the default's own output frame by frame (the experts never
-move each other's boxes; tested). A partner other than the default's then gives, exactly and for
+the choice at ``expert_memory`` and ``expert_blend_iou`` is the default's own output frame by
+frame (the experts never move each other's boxes; tested). A partner other than the default's then gives, exactly and for
 the cost of its single runs, what the default would give with that partner (round 71). The rows
 are always judged against the default's runs.
 """
@@ -59,8 +59,8 @@ def chosen_boxes(own: TrackResult, partner: TrackResult, memory: float,
     memory : float
         The weight of the past in each run's running average of eps_pos*, in [0, 1).
     blend_iou : float
-        Where the two boxes overlap at least this much, the output is their blend (``expert_blend_iou``;
-        1, the default here: never).
+        Where the two boxes overlap at least this much, the output is their blend
+        (``expert_blend_iou``; 1, the default here: never).
 
     Returns
     -------
