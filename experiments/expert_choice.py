@@ -25,9 +25,9 @@ of a commit before the adoption (``8668979``), whose cached runs the study reads
 ``--own`` makes the own expert a configuration of its own (changes of the default): with
 ``--own second_expert=off`` the two runs are the default's two experts, each tracking alone, and
 the choice at ``expert_memory`` and ``expert_blend_iou`` is the default's own output frame by
-frame (the experts never move each other's boxes; tested). A partner other than the default's then gives, exactly and for
-the cost of its single runs, what the default would give with that partner (round 71). The rows
-are always judged against the default's runs.
+frame (the experts never move each other's boxes; tested). A partner other than the default's
+then gives, exactly and for the cost of its single runs, what the default would give with that
+partner (round 71). The rows are always judged against the default's runs.
 """
 from __future__ import annotations
 
