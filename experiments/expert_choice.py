@@ -93,11 +93,13 @@ def _choose(own: TrackResult, partner: TrackResult, memory: float,
     return boxes, chosen, blended
 
 
-def _chosen_run(own: TrackResult, partner: TrackResult, memory: float, blend_iou: float) -> TrackResult:
-    """The choice as a run: each frame's box and state from the run chosen on it, or the blend's."""
+def _chosen_run(own: TrackResult, partner: TrackResult, memory: float, blend_iou: float,
+                patch_size: int) -> TrackResult:
+    """The choice as a run: each frame's box and state from the run chosen on it, or the blend's
+    (its state at the own expert's ``patch_size``, as the tracker makes it)."""
     boxes, chosen, blended = _choose(own, partner, memory, blend_iou)
     states = np.where(chosen[:, None] == 1, partner.states, own.states)
-    states[blended] = box_to_state(boxes[blended])
+    states[blended] = box_to_state(boxes[blended], patch_size)
     return TrackResult(boxes, states)
 
 
@@ -138,7 +140,8 @@ def main(argv=None) -> int:
 
     own_runs = default_runs if own == TrackerParams() else runs_of(own)
     partner_runs = runs_of(partner)
-    choices = [_chosen_run(mine, other, args.memory, args.blend_iou) for mine, other in zip(own_runs, partner_runs)]
+    choices = [_chosen_run(mine, other, args.memory, args.blend_iou, own.patch_size)
+               for mine, other in zip(own_runs, partner_runs)]
     named = [("partner alone", partner, partner_runs)]
     if own != TrackerParams():
         named.append(("own alone", own, own_runs))
