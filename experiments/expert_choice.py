@@ -1,6 +1,7 @@
 """Offline: two configurations' runs side by side, the output on each frame chosen by eps_pos*.
 
-``python -m experiments.expert_choice --seeds 335-344 --partner update_interval=1 [--memory 0.95] [--blend-iou 0.5]``
+``python -m experiments.expert_choice --seeds 335-344 --partner update_interval=1 [--memory 0.95] [--blend-iou 0.5]
+[--held-share 0.7] [--unrecognised-gate 0.15]``
 ``python -m experiments.expert_choice --seeds 370-374 --own second_expert=off
 --partner second_expert=off,update_interval=1``
 
@@ -10,7 +11,10 @@ of its estimate's eps_pos* (``average = memory * average + (1 - memory) * eps_po
 first frame), and the output is the partner's box where its average is strictly lower, the
 default's elsewhere; where the two boxes overlap at IoU >= ``--blend-iou`` (the default's
 ``expert_blend_iou``, 0.5 since round 76; 1: never), their blend
-(:func:`nrmlc.tracker.algorithm.blend_experts`). The choice is causal and changes neither run, so
+(:func:`nrmlc.tracker.algorithm.blend_experts`); on a frame where neither run's eps_pos* is under
+``--unrecognised-gate``, the output's size moves ``--held-share`` of the way to the last recognised
+output's (the default's ``unrecognised_size_share``, 0.7 since round 77; 0: never;
+:func:`nrmlc.tracker.algorithm.held_size`). The choice is causal and changes neither run, so
 it measures, before anything is built, what a second expert beside the tracker would give
 (rounds 63 and 64, docs/findings/round-63-a-second-expert.md). It prints, as ``experiments.screen`` does, the paired
 difference to the default on half A, half B and the synthetic suite with the adoption rule's
@@ -24,7 +28,7 @@ of a commit before the adoption (``8668979``), whose cached runs the study reads
 
 ``--own`` makes the own expert a configuration of its own (changes of the default): with
 ``--own second_expert=off`` the two runs are the default's two experts, each tracking alone, and
-the choice at ``expert_memory`` and ``expert_blend_iou`` is the default's own output frame by
+the choice at the default's ``expert_memory``, ``expert_blend_iou`` and held size is its own output frame by
 frame (the experts never move each other's boxes; tested). A partner other than the default's
 then gives, exactly and for the cost of its single runs, what the default would give with that
 partner (round 71). The rows are always judged against the default's runs.
@@ -43,13 +47,13 @@ from experiments.screen import (_report, add_run_options, add_target_options, ch
 from nrmlc.errors import NrmlcError
 from nrmlc.runner import RunCache
 from nrmlc.geometry import box_to_state
-from nrmlc.tracker.algorithm import blend_experts, choose_expert
+from nrmlc.tracker.algorithm import blend_experts, choose_expert, held_size
 from nrmlc.tracker.loop import TrackResult
 from nrmlc.tracker.params import TrackerParams
 
 
-def chosen_boxes(own: TrackResult, partner: TrackResult, memory: float,
-                 blend_iou: float = 1.0) -> tuple[np.ndarray, np.ndarray]:
+def chosen_boxes(own: TrackResult, partner: TrackResult, memory: float, blend_iou: float = 1.0,
+                 held_share: float = 0.0, gate: float = 0.15) -> tuple[np.ndarray, np.ndarray]:
     """The frame-by-frame choice between two runs of one sequence, as the tracker makes it.
 
     Parameters
@@ -61,45 +65,57 @@ def chosen_boxes(own: TrackResult, partner: TrackResult, memory: float,
     blend_iou : float
         Where the two boxes overlap at least this much, the output is their blend
         (``expert_blend_iou``; 1, the default here: never).
+    held_share, gate : float
+        Where neither run's eps_pos* is under ``gate``, the output's log size moves ``held_share``
+        of the way to the last recognised output's (``unrecognised_size_share`` and
+        ``unrecognised_gate``; a share of 0, the default here: never).
 
     Returns
     -------
     boxes : (n_frames, 4) float64
         The partner's box where its average is strictly lower, the own one elsewhere (frame 0:
-        the own, the initial box of both), or the blend.
+        the own, the initial box of both), or the blend; held where neither run recognises the target.
     chosen : (n_frames,) int64
         1 where the partner is the chosen expert, 0 elsewhere.
     """
-    boxes, chosen, _ = _choose(own, partner, memory, blend_iou)
+    boxes, chosen, _ = _choose(own, partner, memory, blend_iou, held_share, gate)
     return boxes, chosen
 
 
-def _choose(own: TrackResult, partner: TrackResult, memory: float,
-            blend_iou: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """:func:`chosen_boxes`, and (n_frames,) bool: where the output is the blend."""
+def _choose(own: TrackResult, partner: TrackResult, memory: float, blend_iou: float,
+            held_share: float, gate: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`chosen_boxes`, and (n_frames,) bool: where the output is neither run's box (the blend,
+    or a held size)."""
     if len(own.boxes) != len(partner.boxes):
         raise NrmlcError(f"the two runs have {len(own.boxes)} and {len(partner.boxes)} frames")
     errors = np.stack([own.diagnostics["error_positive"], partner.diagnostics["error_positive"]], axis=1)
     average = np.zeros(2)
     chosen = np.zeros(len(own.boxes), dtype=np.int64)
     boxes = np.array(own.boxes, dtype=np.float64)
-    blended = np.zeros(len(boxes), dtype=bool)
+    changed = np.zeros(len(boxes), dtype=bool)
+    recognised_log_size = np.log(boxes[0, 2:])
     for index in range(1, len(errors)):
         average, chosen[index] = choose_expert(average, errors[index], memory)
         pair = np.stack([own.boxes[index], partner.boxes[index]])
-        blend = blend_experts(pair, errors[index], blend_iou)
-        boxes[index] = pair[chosen[index]] if blend is None else blend
-        blended[index] = blend is not None
-    return boxes, chosen, blended
+        box = blend_experts(pair, errors[index], blend_iou)
+        changed[index] = box is not None
+        box = pair[chosen[index]] if box is None else box
+        if errors[index].min() < gate:
+            recognised_log_size = np.log(box[2:])
+        elif held_share > 0:
+            box = held_size(box, recognised_log_size, held_share)
+            changed[index] = True
+        boxes[index] = box
+    return boxes, chosen, changed
 
 
 def _chosen_run(own: TrackResult, partner: TrackResult, memory: float, blend_iou: float,
-                patch_size: int) -> TrackResult:
-    """The choice as a run: each frame's box and state from the run chosen on it, or the blend's
-    (its state at the own expert's ``patch_size``, as the tracker makes it)."""
-    boxes, chosen, blended = _choose(own, partner, memory, blend_iou)
+                held_share: float, gate: float, patch_size: int) -> TrackResult:
+    """The choice as a run: each frame's box and state from the run chosen on it, or the blend's or
+    the held size's (its state at the own expert's ``patch_size``, as the tracker makes it)."""
+    boxes, chosen, changed = _choose(own, partner, memory, blend_iou, held_share, gate)
     states = np.where(chosen[:, None] == 1, partner.states, own.states)
-    states[blended] = box_to_state(boxes[blended], patch_size)
+    states[changed] = box_to_state(boxes[changed], patch_size)
     return TrackResult(boxes, states)
 
 
@@ -114,6 +130,12 @@ def main(argv=None) -> int:
     parser.add_argument("--blend-iou", type=float, default=TrackerParams().expert_blend_iou,
                         help="blend the two boxes where they overlap at least this much (1: never; default: "
                              "the default's expert_blend_iou)")
+    parser.add_argument("--held-share", type=float, default=TrackerParams().unrecognised_size_share,
+                        help="where neither run recognises the target, move the size this share of the way to "
+                             "the last recognised output's (0: never; default: the default's unrecognised_size_share)")
+    parser.add_argument("--unrecognised-gate", type=float, default=TrackerParams().unrecognised_gate,
+                        help="the eps_pos* at or above which a run does not recognise the target (default: the "
+                             "default's unrecognised_gate)")
     add_run_options(parser)
     args = parser.parse_args(argv)
     try:
@@ -125,6 +147,10 @@ def main(argv=None) -> int:
             TrackerParams(expert_blend_iou=args.blend_iou)
         except NrmlcError as error:
             raise NrmlcError(f"--blend-iou: {error}") from None
+        try:
+            TrackerParams(unrecognised_size_share=args.held_share, unrecognised_gate=args.unrecognised_gate)
+        except NrmlcError as error:
+            raise NrmlcError(f"--held-share or --unrecognised-gate: {error}") from None
         partner = parse_variant("partner", args.partner, "default")
         own = parse_variant("own", args.own, "default")
         seeds, sequences, groups = chosen_targets(args)
@@ -140,12 +166,15 @@ def main(argv=None) -> int:
 
     own_runs = default_runs if own == TrackerParams() else runs_of(own)
     partner_runs = runs_of(partner)
-    choices = [_chosen_run(mine, other, args.memory, args.blend_iou, own.patch_size)
+    choices = [_chosen_run(mine, other, args.memory, args.blend_iou, args.held_share, args.unrecognised_gate,
+                           own.patch_size)
                for mine, other in zip(own_runs, partner_runs)]
     named = [("partner alone", partner, partner_runs)]
     if own != TrackerParams():
         named.append(("own alone", own, own_runs))
     blend = "" if args.blend_iou >= 1 else f", blend at IoU >= {args.blend_iou:g}"
+    if args.held_share > 0:
+        blend += f", size held {args.held_share:g} under eps_pos* >= {args.unrecognised_gate:g}"
     named.append((f"the choice (memory {args.memory:g}{blend})", partner, choices))
     base_measures = run_measures(default_runs, default_specs)
     base = overlaps_of(base_measures)

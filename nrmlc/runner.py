@@ -182,10 +182,13 @@ def frames_tracked(sequence, n_frames: int | None) -> int:
 #: for its five switches, then removed them; round 20 for ``translation_floor``, whose 0 is the
 #: ``paper`` preset's and the default's before round 20; round 51 for the weak-trigger search's
 #: three fields, whose off values are the ``paper`` preset's and the default's before round 51; rounds
-#: 63-64 for ``second_expert``, whose 'off' is the ``paper`` preset's and the default's before round 64).
+#: 63-64 for ``second_expert``, whose 'off' is the ``paper`` preset's and the default's before round 64;
+#: round 77 for ``unrecognised_size_share``, whose 0 is the ``paper`` preset's and the default's before
+#: round 77; its gate ``unrecognised_gate`` is not a switch and stays in every key).
 SWITCHES_ADDED_LATER: dict[str, object] = {"translation_floor": 0.0, "brightness": "raw", "redetect_trigger": 0.99,
                                            "redetect_weak_radius": 100.0, "redetect_weak_accept": 1.0,
-                                           "second_expert": "off", "expert_blend_iou": 1.0}
+                                           "second_expert": "off", "expert_blend_iou": 1.0,
+                                           "unrecognised_size_share": 0.0}
 
 
 def params_for_key(params: TrackerParams) -> dict:

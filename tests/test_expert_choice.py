@@ -43,6 +43,19 @@ def test_boxes_that_agree_are_blended_as_the_tracker_blends_them():
     np.testing.assert_array_equal(boxes, np.where(chosen[:, None] == 1, partner.boxes, own.boxes))
 
 
+def test_where_neither_run_recognises_the_size_moves_toward_the_last_recognised():
+    own = _run([0, 0.1, 0.3, 0.3, 0.1, 0.3], 0.0)
+    partner = _run([0, 0.2, 0.3, 0.1, 0.3, 0.3], 0.0)
+    own.boxes[:, 2:] = [[20, 20], [30, 30], [10, 10], [20, 20], [40, 40], [10, 10]]
+    partner.boxes[:, 2:] = own.boxes[:, 2:]
+    boxes, _ = expert_choice.chosen_boxes(own, partner, 0.0, held_share=0.5, gate=0.15)
+    # Recognised at frames 1, 3 and 4 (30, 20 and 40 px): frame 2 moves half way to 30, frame 5 to 40.
+    np.testing.assert_allclose(boxes[:, 2], [20, 30, (10 * 30) ** 0.5, 20, 40, (10 * 40) ** 0.5])
+    np.testing.assert_allclose(boxes[:, :2] + boxes[:, 2:] / 2, own.boxes[:, :2] + own.boxes[:, 2:] / 2)
+    boxes, _ = expert_choice.chosen_boxes(own, partner, 0.0, held_share=0.5, gate=0.35)  # all recognised
+    np.testing.assert_array_equal(boxes, own.boxes)
+
+
 def test_runs_of_other_lengths_are_refused():
     with pytest.raises(NrmlcError, match="frames"):
         expert_choice.chosen_boxes(_run([0, 0.1], 0.0), _run([0, 0.1, 0.2], 0.0), 0.5)
@@ -55,7 +68,8 @@ def test_the_study_reports_the_partner_and_the_choice(tmp_path, capsys):
                                "--json", str(out), "--jobs", "1"])
     assert code == 0
     names = [row["name"] for row in json.loads(out.read_text())["variants"]]
-    assert names == ["partner alone", "the choice (memory 0.95, blend at IoU >= 0.5)"]
+    assert names == ["partner alone",
+                     "the choice (memory 0.95, blend at IoU >= 0.5, size held 0.7 under eps_pos* >= 0.15)"]
     assert "the choice" in capsys.readouterr().out
 
 
@@ -76,6 +90,7 @@ def test_the_default_s_two_experts_run_alone_and_chosen_give_the_default(tmp_pat
     assert code == 0
     document = json.loads(out.read_text())
     rows = {row["name"]: row for row in document["variants"]}
-    assert list(rows) == ["partner alone", "own alone", "the choice (memory 0.95, blend at IoU >= 0.5)"]
-    assert rows["the choice (memory 0.95, blend at IoU >= 0.5)"]["per_seed"] == document["baseline_per_seed"]
+    choice = "the choice (memory 0.95, blend at IoU >= 0.5, size held 0.7 under eps_pos* >= 0.15)"
+    assert list(rows) == ["partner alone", "own alone", choice]
+    assert rows[choice]["per_seed"] == document["baseline_per_seed"]
     assert any(rows[name]["per_seed"] != document["baseline_per_seed"] for name in ("partner alone", "own alone"))

@@ -9,15 +9,16 @@ from nrmlc.data import SyntheticSequence, SyntheticSpec
 from nrmlc.errors import ParameterError
 from nrmlc.geometry import box_iou
 from nrmlc.metrics import overlaps
-from nrmlc.tracker.algorithm import blend_experts
+from nrmlc.tracker.algorithm import blend_experts, held_size
 from nrmlc.tracker.loop import track_sequence
 from nrmlc.tracker.params import LINEAGE_MOTION_SIGMAS
 
 # No floor: on a small synthetic target the floor makes the two motion models the same 4 px.
 # One tracker unless a test names its second expert (the default has one since round 64); the
-# output the chosen expert's box unless a test names the blend (the default's since round 76).
+# output the chosen expert's box unless a test names the blend (the default's since round 76) or
+# the held size (since round 77).
 SETTINGS = dict(n_particles=120, redetect_count=60, translation_floor=0.0, second_expert="off",
-                expert_blend_iou=1.0)
+                expert_blend_iou=1.0, unrecognised_size_share=0.0)
 
 
 @pytest.fixture(scope="module")
@@ -100,6 +101,48 @@ def test_the_blend_weighs_the_better_recognised_expert_more():
     assert blend_experts(boxes[[0, 0]], np.array([0.1, 0.1]), 1.0) is None
 
 
+@pytest.mark.parametrize("share", [0.7, 1.0])
+def test_where_neither_expert_recognises_the_size_moves_toward_the_last_recognised(sequence, share):
+    """The oracle: the two experts run apart; on a frame where both eps_pos* reach the gate, the
+    output keeps the blend's (or the choice's) centre and its log size moves ``share`` of the way
+    to that of the last output whose frame was recognised (round 77). The gate is set inside this
+    short sequence's range of eps_pos* so that both kinds of frame occur."""
+    own, partner = _run(sequence), _run(sequence, update_interval=1)
+    errors = np.stack([own.diagnostics["error_positive"], partner.diagnostics["error_positive"]], axis=1)
+    gate = float(np.median(errors[1:].min(axis=1)))
+    pair = _run(sequence, second_expert="every_frame", expert_blend_iou=0.5, unrecognised_size_share=share,
+                unrecognised_gate=gate)
+    blend = _run(sequence, second_expert="every_frame", expert_blend_iou=0.5)  # the output before round 77
+    recognised = errors.min(axis=1) < gate
+    assert recognised[1:].any() and not recognised[1:].all()
+    reference = np.log(blend.boxes[0, 2:])
+    expected = blend.boxes.copy()
+    for index in range(1, len(expected)):
+        log_size = np.log(blend.boxes[index, 2:])
+        if recognised[index]:
+            reference = log_size
+            continue
+        size = np.exp((1 - share) * log_size + share * reference)
+        centre = blend.boxes[index, :2] + blend.boxes[index, 2:] / 2
+        expected[index] = np.concatenate([centre - size / 2, size])
+    np.testing.assert_allclose(pair.boxes, expected, rtol=0, atol=1e-9)
+    np.testing.assert_array_equal(pair.boxes[recognised], blend.boxes[recognised])  # to the bit
+    assert np.abs(pair.boxes[~recognised][:, 2:] - blend.boxes[~recognised][:, 2:]).max() > 0.01
+    np.testing.assert_allclose(pair.states[~recognised][:, [0, 1, 2]],
+                               np.stack([pair.boxes[:, 0] + pair.boxes[:, 2] / 2 - 1,
+                                         pair.boxes[:, 1] + pair.boxes[:, 3] / 2 - 1,
+                                         pair.boxes[:, 2] / 32], axis=1)[~recognised], atol=1e-9)
+
+
+def test_the_held_size_keeps_the_centre():
+    box = np.array([10.0, 20.0, 40.0, 10.0])  # centre (30, 25)
+    recognised = np.log([20.0, 40.0])
+    np.testing.assert_allclose(held_size(box, recognised, 0.0), box)  # the tracker skips it at 0
+    np.testing.assert_allclose(held_size(box, recognised, 1.0), [20.0, 5.0, 20.0, 40.0])
+    width = (40.0 * 20.0) ** 0.5  # the geometric means: width sqrt(40 * 20), height sqrt(10 * 40) = 20
+    np.testing.assert_allclose(held_size(box, recognised, 0.5), [30 - width / 2, 15.0, width, 20.0])
+
+
 def test_the_tracker_s_iou_is_the_metrics_one():
     rng = np.random.default_rng(0)
     for _ in range(200):
@@ -110,7 +153,7 @@ def test_the_tracker_s_iou_is_the_metrics_one():
 def test_off_is_one_tracker_and_the_partner_has_the_lineage_motion():
     assert NRMLCTracker(seed=0, second_expert="off").partner is None
     assert NRMLCTracker(seed=0).partner is not None  # the default's (round 64); the paper's has none
-    assert TrackerParams.paper().second_expert == "off"
+    assert TrackerParams.paper().second_expert == "off" and TrackerParams.paper().unrecognised_size_share == 0
     params = TrackerParams(second_expert="lineage_noise")
     partner = params.partner_params()
     assert partner.second_expert == "off" and partner.translation_noise == "pixels"
@@ -133,7 +176,9 @@ def test_move_to_moves_both_experts(sequence):
 
 @pytest.mark.parametrize("changes, name", [(dict(second_expert="twin"), "second_expert"),
                                            (dict(expert_memory=1.0), "expert_memory"),
-                                           (dict(expert_memory=-0.1), "expert_memory")])
+                                           (dict(expert_memory=-0.1), "expert_memory"),
+                                           (dict(unrecognised_size_share=1.5), "unrecognised_size_share"),
+                                           (dict(unrecognised_gate=0.0), "unrecognised_gate")])
 def test_bad_values_name_the_parameter(changes, name):
     with pytest.raises(ParameterError, match=name):
         TrackerParams(**changes)

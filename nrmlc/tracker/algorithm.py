@@ -27,7 +27,8 @@ Per frame:
    64), a second tracker with an update every frame (or the lineage's motion model) does steps
    1-6 on its own, and the frame's output is the estimate of the one whose running average of
    eps_pos* is lower; where the two experts' boxes agree (IoU >= ``expert_blend_iou``), their
-   blend (round 76).
+   blend (round 76); on a frame neither expert recognises (eps_pos* >= ``unrecognised_gate``),
+   the output's size moves toward the last recognised output's (round 77).
 """
 from __future__ import annotations
 
@@ -224,6 +225,31 @@ def blend_experts(boxes: np.ndarray, errors: np.ndarray, min_iou: float) -> np.n
     return np.concatenate([centre - size / 2, size])
 
 
+def held_size(box: np.ndarray, recognised_log_size: np.ndarray, share: float) -> np.ndarray:
+    """The output on a frame where neither expert recognises the target
+    (``unrecognised_size_share``): a lost tracker's box drifts small, and the size last recognised
+    is the best it has (round 77).
+
+    Parameters
+    ----------
+    box : (4,) float64
+        The experts' output ``x, y, w, h`` (w, h > 0).
+    recognised_log_size : (2,) float64
+        log(w), log(h) of the last output whose frame an expert recognised.
+    share : float
+        How far the log width and height move toward ``recognised_log_size``, in [0, 1].
+
+    Returns
+    -------
+    box : (4,) float64
+        The same centre; width and height ``exp(log size + share * (recognised - log size))``.
+    """
+    log_size = np.log(box[2:])
+    size = np.exp(log_size + share * (recognised_log_size - log_size))
+    centre = box[:2] + box[2:] / 2
+    return np.concatenate([centre - size / 2, size])
+
+
 def _exp_or_inf(value: float) -> float:
     """exp(value) for reporting h, inf instead of an overflow warning."""
     return float("inf") if value > 709.0 else float(np.exp(value))
@@ -282,6 +308,9 @@ class NRMLCTracker:
         #: average of eps_pos* (own, second); None and unused when there is none.
         self.partner = None if self.params.second_expert == "off" else self._new_partner()
         self.expert_errors = np.zeros(2)
+        #: log(w), log(h) of the last output whose frame an expert recognised
+        #: (``unrecognised_size_share``); the first frame's box at ``init``.
+        self.recognised_log_size: np.ndarray | None = None
         self._busy = threading.Lock()
 
     def __getstate__(self) -> dict:
@@ -373,6 +402,7 @@ class NRMLCTracker:
         if self.partner is not None:
             self.partner._init(image, box)
         self.expert_errors = np.zeros(2)
+        self.recognised_log_size = np.log(np.asarray(box, dtype=np.float64)[2:])
 
     def update(self, image) -> np.ndarray:
         """Track into the next frame; returns the 1-based ``(x, y, w, h)`` box.
@@ -417,8 +447,10 @@ class NRMLCTracker:
         """Track ``image`` with the second expert too, and make the output (``last``, the returned
         box) the estimate of the expert whose average eps_pos* is lower (the own one on a tie), or
         the two's blend where their boxes overlap at IoU >= ``expert_blend_iou`` (``last`` then the
-        chosen expert's result with the blended box and its state). Each expert goes on from its
-        own estimate: the choice and the blend change only what is reported."""
+        chosen expert's result with the blended box and its state); where neither expert's eps_pos*
+        is under ``unrecognised_gate``, with its size moved toward the last recognised output's
+        (:func:`held_size`). Each expert goes on from its own estimate: the choice, the blend and the
+        held size change only what is reported."""
         self.partner._update(image)
         errors = np.array([own.error_positive, self.partner.last.error_positive])
         self.expert_errors, chosen = choose_expert(self.expert_errors, errors, self.params.expert_memory)
@@ -426,6 +458,11 @@ class NRMLCTracker:
             self.last = dataclasses.replace(self.partner.last, expert=1)
             self.last_coding = self.partner.last_coding
         box = blend_experts(np.stack([own.box, self.partner.last.box]), errors, self.params.expert_blend_iou)
+        if errors.min() < self.params.unrecognised_gate:
+            self.recognised_log_size = np.log((self.last.box if box is None else box)[2:])
+        elif self.params.unrecognised_size_share > 0:
+            box = held_size(self.last.box if box is None else box, self.recognised_log_size,
+                            self.params.unrecognised_size_share)
         if box is not None:
             self.last = dataclasses.replace(self.last, box=box, state=box_to_state(box, self.params.patch_size))
         return self.last.box
@@ -434,7 +471,8 @@ class NRMLCTracker:
         """Move the estimate to ``box`` (1-based x, y, w, h), keeping the templates.
 
         For diagnostics such as re-centring on the ground truth: the next
-        ``update`` draws its particles around this box.
+        ``update`` draws its particles around this box, and its size is the last recognised one
+        (``unrecognised_size_share``).
         """
         if self.state is None:
             raise ParameterError("call init(frame, box) before move_to(box)")
@@ -444,6 +482,7 @@ class NRMLCTracker:
         self.state = box_to_state(box, self.params.patch_size)
         self.particles = None
         self.log_weights = None
+        self.recognised_log_size = np.log(box[2:])
         if self.partner is not None:
             self.partner.move_to(box)
 

@@ -244,6 +244,19 @@ class TrackerParams:
         the chosen expert's box on every frame, the default of rounds 64-75) never blends. *Ours*: 0.5 since round 76 (offline and
         exact; seeds 385-389: A +0.003 ± 0.001, B +0.004 ± 0.001; named check 390-394: A +0.003 ±
         0.000, B +0.003 ± 0.001; docs/DEVIATIONS.md). Without a second expert it does nothing.
+    unrecognised_size_share : float
+        On a frame where neither expert's eps_pos* is below ``unrecognised_gate`` (the target not
+        even weakly recognised), the output keeps its centre and its log width and height move
+        this share of the way to those of the last output whose frame an expert recognised
+        (:func:`nrmlc.tracker.algorithm.held_size`): a lost tracker's box drifts small, and the
+        size last recognised is the best the tracker has. 0 (off: the default of rounds 64-76)
+        reports the experts' size. *Ours*: 0.7 since round 77 (offline and exact; seeds 385-389:
+        A +0.001 ± 0.000, B +0.014 ± 0.001; docs/DEVIATIONS.md). Only what is reported changes;
+        without a second expert it does nothing.
+    unrecognised_gate : float
+        The eps_pos* at or above which an expert does not recognise the target, for
+        ``unrecognised_size_share`` (*ours*: 0.15, ``redetect_trigger``'s value, where the search
+        calls a frame not even weakly recognised; chosen on half A in round 77).
     """
 
     # -- motion model and particles (Sec. 2, eq. 1) -------------------------------------
@@ -303,6 +316,8 @@ class TrackerParams:
     second_expert: Literal["off", "lineage_noise", "every_frame"] = "every_frame"
     expert_memory: float = bounded(0.95, 0, 1, high_open=True)
     expert_blend_iou: float = bounded(0.5, 0, 1)
+    unrecognised_size_share: float = bounded(0.7, 0, 1)
+    unrecognised_gate: float = bounded(0.15, 0, 1, low_open=True)
 
     def __post_init__(self) -> None:
         kinds = _kinds()
@@ -469,7 +484,8 @@ PRESETS: dict[str, dict] = {
                   update_interval=5, update_error_threshold=0.1, redetect_count=0, redetect_trigger=0.99,
                   redetect_weak_radius=100.0, redetect_weak_accept=1.0,
                   generative_weight=0.0, n_particles=600, translation_floor=0.0, n_negative=150,
-                  brightness="raw", second_expert="off", expert_blend_iou=1.0),
+                  brightness="raw", second_expert="off", expert_blend_iou=1.0,
+                  unrecognised_size_share=0.0),
 }
 
 
@@ -486,7 +502,8 @@ SECTIONS: dict[str, tuple[str, ...]] = {
                     "redetect_weak_radius", "redetect_weak_accept"),
     "generative": ("generative_weight", "generative_candidates", "generative_neighbours", "generative_lam",
                    "generative_interval", "generative_step"),
-    "experts": ("second_expert", "expert_memory", "expert_blend_iou"),
+    "experts": ("second_expert", "expert_memory", "expert_blend_iou", "unrecognised_size_share",
+                "unrecognised_gate"),
 }
 
 _dataclass_init = TrackerParams.__init__
