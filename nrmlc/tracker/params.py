@@ -251,8 +251,9 @@ class TrackerParams:
         (:func:`nrmlc.tracker.algorithm.held_size`): a lost tracker's box drifts small, and the
         size last recognised is the best the tracker has. 0 (off: the default of rounds 64-76)
         reports the experts' size. *Ours*: 0.7 since round 77 (offline and exact; seeds 385-389:
-        A +0.001 ± 0.000, B +0.014 ± 0.001; docs/DEVIATIONS.md). Only what is reported changes;
-        without a second expert it does nothing.
+        A +0.001 ± 0.000, B +0.014 ± 0.001; named check 400-404: A +0.003 ± 0.001, B +0.013 ±
+        0.001; docs/DEVIATIONS.md). Only what is reported changes; without a second expert it does
+        nothing.
     unrecognised_gate : float
         The eps_pos* at or above which an expert does not recognise the target, for
         ``unrecognised_size_share`` (*ours*: 0.15, ``redetect_trigger``'s value, where the search
