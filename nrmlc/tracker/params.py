@@ -241,9 +241,10 @@ class TrackerParams:
     expert_blend_iou : float
         Where the two experts' boxes overlap at least this much (IoU), the output is their blend
         (:func:`nrmlc.tracker.algorithm.blend_experts`) in place of the chosen one's box; 1 (off:
-        the chosen expert's box on every frame, the default of rounds 64-75) never blends. *Ours*: 0.5 since round 76 (offline and
-        exact; seeds 385-389: A +0.003 ± 0.001, B +0.004 ± 0.001; named check 390-394: A +0.003 ±
-        0.000, B +0.003 ± 0.001; docs/DEVIATIONS.md). Without a second expert it does nothing.
+        the chosen expert's box on every frame, the default of rounds 64-75) never blends.
+        *Ours*: 0.5 since round 76 (offline and exact; seeds 385-389: A +0.003 ± 0.001, B +0.004 ±
+        0.001; named check 390-394: A +0.003 ± 0.000, B +0.003 ± 0.001; docs/DEVIATIONS.md).
+        Without a second expert it does nothing.
     unrecognised_size_share : float
         On a frame where neither expert's eps_pos* is below ``unrecognised_gate`` (the target not
         even weakly recognised), the output keeps its centre and its log width and height move
