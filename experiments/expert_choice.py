@@ -47,7 +47,7 @@ from experiments.screen import (_report, add_run_options, add_target_options, ch
 from nrmlc.errors import NrmlcError
 from nrmlc.runner import RunCache
 from nrmlc.geometry import box_to_state
-from nrmlc.tracker.algorithm import blend_experts, choose_expert, held_size
+from nrmlc.tracker.algorithm import choose_expert, experts_output
 from nrmlc.tracker.loop import TrackResult
 from nrmlc.tracker.params import TrackerParams
 
@@ -94,18 +94,12 @@ def _choose(own: TrackResult, partner: TrackResult, memory: float, blend_iou: fl
     boxes = np.array(own.boxes, dtype=np.float64)
     changed = np.zeros(len(boxes), dtype=bool)
     recognised_log_size = np.log(boxes[0, 2:])
+    params = TrackerParams(expert_blend_iou=blend_iou, unrecognised_size_share=held_share, unrecognised_gate=gate)
     for index in range(1, len(errors)):
         average, chosen[index] = choose_expert(average, errors[index], memory)
-        pair = np.stack([own.boxes[index], partner.boxes[index]])
-        box = blend_experts(pair, errors[index], blend_iou)
-        changed[index] = box is not None
-        box = pair[chosen[index]] if box is None else box
-        if errors[index].min() < gate:
-            recognised_log_size = np.log(box[2:])
-        elif held_share > 0:
-            box = held_size(box, recognised_log_size, held_share)
-            changed[index] = True
-        boxes[index] = box
+        boxes[index], recognised_log_size, changed[index] = experts_output(
+            np.stack([own.boxes[index], partner.boxes[index]]), errors[index], chosen[index], recognised_log_size,
+            params)
     return boxes, chosen, changed
 
 

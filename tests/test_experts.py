@@ -9,7 +9,7 @@ from nrmlc.data import SyntheticSequence, SyntheticSpec
 from nrmlc.errors import ParameterError
 from nrmlc.geometry import box_iou
 from nrmlc.metrics import overlaps
-from nrmlc.tracker.algorithm import blend_experts, held_size
+from nrmlc.tracker.algorithm import blend_experts, experts_output, held_size
 from nrmlc.tracker.loop import track_sequence
 from nrmlc.tracker.params import LINEAGE_MOTION_SIGMAS
 
@@ -141,6 +141,24 @@ def test_the_held_size_keeps_the_centre():
     np.testing.assert_allclose(held_size(box, recognised, 1.0), [20.0, 5.0, 20.0, 40.0])
     width = (40.0 * 20.0) ** 0.5  # the geometric means: width sqrt(40 * 20), height sqrt(10 * 40) = 20
     np.testing.assert_allclose(held_size(box, recognised, 0.5), [30 - width / 2, 15.0, width, 20.0])
+
+
+def test_the_experts_output_reports_the_choice_the_blend_or_the_held_size():
+    apart = np.array([[0.0, 0.0, 10.0, 10.0], [50.0, 50.0, 20.0, 20.0]])  # IoU 0: no blend
+    last = np.log([40.0, 40.0])
+    params = TrackerParams(expert_blend_iou=0.5, unrecognised_gate=0.15, unrecognised_size_share=0.5)
+    box, size, moved = experts_output(apart, np.array([0.3, 0.1]), 1, last, params)
+    assert not moved and np.array_equal(box, apart[1])  # recognised: the chosen box, its size remembered
+    np.testing.assert_allclose(size, np.log([20.0, 20.0]))
+    box, size, moved = experts_output(apart, np.array([0.3, 0.2]), 0, last, params)
+    assert moved and np.array_equal(size, last)  # neither recognises: held half way, centre kept
+    np.testing.assert_allclose(box, [5.0 - 10.0, 5.0 - 10.0, 20.0, 20.0])
+    box, size, moved = experts_output(apart, np.array([0.3, 0.2]), 0, last, params.replace(unrecognised_size_share=0.0))
+    assert not moved and np.array_equal(box, apart[0]) and np.array_equal(size, last)
+    close = np.array([[0.0, 0.0, 10.0, 10.0], [1.0, 0.0, 10.0, 10.0]])  # IoU 9/11: the blend
+    box, size, moved = experts_output(close, np.array([0.1, 0.1]), 0, last, params)
+    assert moved
+    np.testing.assert_allclose(box, [0.5, 0.0, 10.0, 10.0], atol=1e-12)
 
 
 def test_the_tracker_s_iou_is_the_metrics_one():

@@ -220,9 +220,7 @@ def blend_experts(boxes: np.ndarray, errors: np.ndarray, min_iou: float) -> np.n
     weight = 0.5 if total <= 0 else errors[0] / total
     weights = np.array([1.0 - weight, weight])
     centres = boxes[:, :2] + boxes[:, 2:] / 2
-    centre = weights @ centres
-    size = np.exp(weights @ np.log(boxes[:, 2:]))
-    return np.concatenate([centre - size / 2, size])
+    return _box_around(weights @ centres, np.exp(weights @ np.log(boxes[:, 2:])))
 
 
 def held_size(box: np.ndarray, recognised_log_size: np.ndarray, share: float) -> np.ndarray:
@@ -245,8 +243,51 @@ def held_size(box: np.ndarray, recognised_log_size: np.ndarray, share: float) ->
         The same centre; width and height ``exp(log size + share * (recognised - log size))``.
     """
     log_size = np.log(box[2:])
-    size = np.exp(log_size + share * (recognised_log_size - log_size))
-    centre = box[:2] + box[2:] / 2
+    return _box_around(box[:2] + box[2:] / 2, np.exp(log_size + share * (recognised_log_size - log_size)))
+
+
+def experts_output(boxes: np.ndarray, errors: np.ndarray, chosen: int, recognised_log_size: np.ndarray,
+                   params: TrackerParams) -> tuple[np.ndarray, np.ndarray, bool]:
+    """What the pair reports on a frame (``second_expert``): the chosen expert's box, or the two's
+    blend where they agree (:func:`blend_experts`); where neither expert's eps_pos* is under
+    ``unrecognised_gate``, with its size moved toward the last recognised output's (:func:`held_size`).
+    The tracker and its offline rebuild (``experiments/expert_choice.py``) both report through it.
+
+    Parameters
+    ----------
+    boxes : (2, 4) float64
+        The own and the second expert's boxes ``x, y, w, h`` (w, h > 0).
+    errors : (2,) float64
+        This frame's eps_pos* of each.
+    chosen : int
+        The expert :func:`choose_expert` chose, 0 (own) or 1.
+    recognised_log_size : (2,) float64
+        log(w), log(h) of the last output whose frame an expert recognised.
+    params : TrackerParams
+        Its ``expert_blend_iou``, ``unrecognised_gate`` and ``unrecognised_size_share``.
+
+    Returns
+    -------
+    box : (4,) float64
+        The output.
+    recognised_log_size : (2,) float64
+        The output's log size where an expert recognises the target; else the one given.
+    moved : bool
+        Whether ``box`` is the blend or a held size rather than ``boxes[chosen]``.
+    """
+    box = blend_experts(boxes, errors, params.expert_blend_iou)
+    moved = box is not None
+    if box is None:
+        box = boxes[chosen]
+    if errors.min() < params.unrecognised_gate:
+        return box, np.log(box[2:]), moved
+    if params.unrecognised_size_share > 0:
+        return held_size(box, recognised_log_size, params.unrecognised_size_share), recognised_log_size, True
+    return box, recognised_log_size, moved
+
+
+def _box_around(centre: np.ndarray, size: np.ndarray) -> np.ndarray:
+    """The box ``x, y, w, h`` (4,) of ``centre`` (2,) and ``size`` (2,)."""
     return np.concatenate([centre - size / 2, size])
 
 
@@ -309,7 +350,7 @@ class NRMLCTracker:
         self.partner = None if self.params.second_expert == "off" else self._new_partner()
         self.expert_errors = np.zeros(2)
         #: log(w), log(h) of the last output whose frame an expert recognised
-        #: (``unrecognised_size_share``); the first frame's box at ``init``.
+        #: (``unrecognised_size_share``); the first frame's box at ``init``; None without a second expert.
         self.recognised_log_size: np.ndarray | None = None
         self._busy = threading.Lock()
 
@@ -402,7 +443,7 @@ class NRMLCTracker:
         if self.partner is not None:
             self.partner._init(image, box)
         self.expert_errors = np.zeros(2)
-        self.recognised_log_size = np.log(np.asarray(box, dtype=np.float64)[2:])
+        self.recognised_log_size = None if self.partner is None else np.log(np.asarray(box, dtype=np.float64)[2:])
 
     def update(self, image) -> np.ndarray:
         """Track into the next frame; returns the 1-based ``(x, y, w, h)`` box.
@@ -457,13 +498,9 @@ class NRMLCTracker:
         if chosen == 1:
             self.last = dataclasses.replace(self.partner.last, expert=1)
             self.last_coding = self.partner.last_coding
-        box = blend_experts(np.stack([own.box, self.partner.last.box]), errors, self.params.expert_blend_iou)
-        if errors.min() < self.params.unrecognised_gate:
-            self.recognised_log_size = np.log((self.last.box if box is None else box)[2:])
-        elif self.params.unrecognised_size_share > 0:
-            box = held_size(self.last.box if box is None else box, self.recognised_log_size,
-                            self.params.unrecognised_size_share)
-        if box is not None:
+        box, self.recognised_log_size, moved = experts_output(
+            np.stack([own.box, self.partner.last.box]), errors, chosen, self.recognised_log_size, self.params)
+        if moved:
             self.last = dataclasses.replace(self.last, box=box, state=box_to_state(box, self.params.patch_size))
         return self.last.box
 
@@ -482,8 +519,8 @@ class NRMLCTracker:
         self.state = box_to_state(box, self.params.patch_size)
         self.particles = None
         self.log_weights = None
-        self.recognised_log_size = np.log(box[2:])
         if self.partner is not None:
+            self.recognised_log_size = np.log(box[2:])
             self.partner.move_to(box)
 
     def _levelled(self, frame: np.ndarray) -> np.ndarray:
