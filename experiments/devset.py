@@ -261,16 +261,30 @@ def format_attribute_means(table: dict, columns) -> str:
     return "\n".join(lines)
 
 
-def peer_overlaps(cache: RunCache, sequences, max_frames, jobs) -> dict:
-    """{tracker: {sequence name: mean overlap}} for the live OpenCV trackers (cached)."""
+def peer_measures(cache: RunCache, sequences, max_frames, jobs) -> tuple[dict, dict]:
+    """({tracker: {sequence name: mean overlap}}, {tracker: {sequence name: :func:`tracked_scale`}})
+    for the live OpenCV trackers (cached)."""
     from experiments.peers import LiveSpec, live_trackers
 
     specs = [LiveSpec(s, name, max_frames) for name in live_trackers() for s in sequences]
     results = cache.run(specs, jobs=jobs)
-    table: dict = {}
+    overlaps: dict = {}
+    scales: dict = {}
     for spec, result in zip(specs, results):
-        table.setdefault(spec.tracker, {})[spec.sequence.name] = float(score(result.boxes, spec.sequence).mean_overlap)
-    return table
+        evaluation = score(result.boxes, spec.sequence)
+        overlaps.setdefault(spec.tracker, {})[spec.sequence.name] = float(evaluation.mean_overlap)
+        scales.setdefault(spec.tracker, {})[spec.sequence.name] = tail_scale(
+            scale_ratios(result.boxes, spec.sequence, evaluation.frames)[1])
+    return overlaps, scales
+
+
+def peer_collapses(scales: dict, names) -> dict:
+    """{peer column: the targets among ``names`` it scores, and those collapsed}, from
+    {column: {sequence name: tracked scale}}: the same measure as NRMLC's (:func:`collapsed`), so
+    that a target that grows while a fixed-size tracker keeps its first box counts for it too."""
+    return {column: {"scored": [n for n in names if np.isfinite(values.get(n, math.nan))],
+                     "collapsed": [n for n in names if values.get(n, math.nan) < COLLAPSED_BELOW]}
+            for column, values in scales.items()}
 
 
 def paired_difference(config_runs: dict, baseline_runs: dict, names) -> dict:
@@ -380,20 +394,25 @@ def format_table(groups: dict, columns: dict) -> str:
     return "\n".join(lines)
 
 
-def lineage_overlaps(folder, sequences, trackers=LINEAGE_TRACKERS) -> tuple[dict, list]:
-    """{tracker: {sequence name: mean overlap}} of the OTB benchmark's own result files in
-    ``folder`` (:mod:`nrmlc.otb_results`), scored like NRMLC, and the notes of files not used."""
+def lineage_measures(folder, sequences, trackers=LINEAGE_TRACKERS) -> tuple[dict, dict, list]:
+    """({tracker: {sequence name: mean overlap}}, {tracker: {sequence name: :func:`tracked_scale`}})
+    of the OTB benchmark's own result files in ``folder`` (:mod:`nrmlc.otb_results`), scored like
+    NRMLC, and the notes of files not used."""
     from nrmlc.otb_results import otb_result_boxes
 
-    table: dict = {}
+    overlaps: dict = {}
+    scales: dict = {}
     notes: list = []
     for tracker in trackers:
         for sequence in sequences:
             boxes, _, found_notes = otb_result_boxes(folder, tracker, sequence)
             notes += found_notes
             if boxes is not None:
-                table.setdefault(tracker, {})[sequence.name] = float(score(boxes, sequence, len(sequence)).mean_overlap)
-    return table, notes
+                evaluation = score(boxes, sequence, len(sequence))
+                overlaps.setdefault(tracker, {})[sequence.name] = float(evaluation.mean_overlap)
+                scales.setdefault(tracker, {})[sequence.name] = tail_scale(
+                    scale_ratios(boxes, sequence, evaluation.frames)[1])
+    return overlaps, scales, notes
 
 
 def default_beside(roots, name: str) -> Path | None:
@@ -505,20 +524,25 @@ def main(argv=None) -> int:
         columns["baseline"] = {n: float(np.mean(v)) for n, v in baseline_runs.items()}
         differences = differences_by_group(config_runs, baseline_runs, groups, seeds)
     real = [s for s in sequences if not isinstance(s, SyntheticSequence)]
+    peer_scales: dict = {}
     if not args.no_peers:
-        for tracker, values in peer_overlaps(cache, sequences, args.max_frames, args.jobs).items():
+        live, live_scales = peer_measures(cache, sequences, args.max_frames, args.jobs)
+        for tracker, values in live.items():
             columns[f"{tracker} (OpenCV)"] = values
+            peer_scales[f"{tracker} (OpenCV)"] = live_scales[tracker]
         otb_results = Path(args.otb_results) if args.otb_results else default_beside(roots, "otb_results")
         if otb_results is not None and real and args.max_frames is None:
-            lineage, notes = lineage_overlaps(otb_results, real)
+            lineage, lineage_scales, notes = lineage_measures(otb_results, real)
             for tracker in LINEAGE_TRACKERS:
                 columns[f"{tracker} (OTB results)"] = lineage.get(tracker, {})
+                peer_scales[f"{tracker} (OTB results)"] = lineage_scales.get(tracker, {})
     attribute_folder = Path(args.attributes) if args.attributes else default_beside(roots, "otb_attributes")
     attribute_table, losses = None, None
     if real:
         losses = {label: {"collapsed": collapsed(scales_of(measures), names),
                           "collapse_after_loss": collapse_after_loss(measures, names),
-                          "lost_early": early_losses(measures, names)}
+                          "lost_early": early_losses(measures, names),
+                          "peers_collapsed": peer_collapses(peer_scales, names)}
                   for label, names in groups.items() if label != "synthetic suite"}
         if attribute_folder is not None:
             from nrmlc.attributes import read_attributes
@@ -536,6 +560,10 @@ def main(argv=None) -> int:
         print(f"config on {title}: tracked scale below {COLLAPSED_BELOW} over the last quarter on "
               f"{len(found['collapsed'])} ({', '.join(found['collapsed']) or 'none'}); lock lost within the first "
               f"{EARLY_SHARE:.0%} on {len(found['lost_early'])} ({', '.join(found['lost_early']) or 'none'})")
+        if found["peers_collapsed"]:
+            print("  the peers' tracked scale below the same bound: " + "; ".join(
+                f"{column} {len(entry['collapsed'])} of {len(entry['scored'])} ({', '.join(entry['collapsed']) or 'none'})"
+                for column, entry in found["peers_collapsed"].items()))
         if found["collapse_after_loss"]:
             order = found["collapse_after_loss"]
             print(f"  collapsed runs whose scale fell only after the lock was lost: "

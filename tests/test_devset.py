@@ -319,3 +319,25 @@ def test_screen_pool_joins_disjoint_seeds_and_rejudges(tmp_path, capsys):
     capsys.readouterr()
     assert screen.main(["--pool", f"{first},{tmp_path / 'other.json'}"]) == 2
     assert "no variant" in capsys.readouterr().err
+
+
+def test_the_peers_collapse_is_nrmlc_s_measure_on_their_boxes(tmp_path):
+    from nrmlc.testing.otb_files import truth, write_otb_result_files
+
+    class Standin:
+        def __init__(self, name, groundtruth):
+            self.name, self.groundtruth = name, groundtruth
+
+        def __len__(self):
+            return len(self.groundtruth)
+
+    folder = write_otb_result_files(tmp_path)
+    grown = truth()
+    grown[5:, 2:] *= 2  # the target doubles in width and height; the file's boxes keep the first size
+    overlaps, scales, notes = devset.lineage_measures(folder, [Standin("Walker-2", grown)], trackers=("RectTracker",))
+    assert scales["RectTracker"]["Walker-2"] == pytest.approx(0.5)  # the last quarter: frames 8-9
+    assert 0 < overlaps["RectTracker"]["Walker-2"] < 1
+    found = devset.peer_collapses({"RectTracker (OTB results)": scales["RectTracker"],
+                                   "lost": {"Walker-2": float("nan")}}, ["Walker-2", "Other"])
+    assert found == {"RectTracker (OTB results)": {"scored": ["Walker-2"], "collapsed": ["Walker-2"]},
+                     "lost": {"scored": [], "collapsed": []}}
