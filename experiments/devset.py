@@ -271,11 +271,16 @@ def peer_measures(cache: RunCache, sequences, max_frames, jobs) -> tuple[dict, d
     overlaps: dict = {}
     scales: dict = {}
     for spec, result in zip(specs, results):
-        evaluation = score(result.boxes, spec.sequence)
-        overlaps.setdefault(spec.tracker, {})[spec.sequence.name] = float(evaluation.mean_overlap)
-        scales.setdefault(spec.tracker, {})[spec.sequence.name] = tail_scale(
-            scale_ratios(result.boxes, spec.sequence, evaluation.frames)[1])
+        overlap, scale = _overlap_and_scale(result.boxes, spec.sequence)
+        overlaps.setdefault(spec.tracker, {})[spec.sequence.name] = overlap
+        scales.setdefault(spec.tracker, {})[spec.sequence.name] = scale
     return overlaps, scales
+
+
+def _overlap_and_scale(boxes, sequence, n_frames: int | None = None) -> tuple[float, float]:
+    """(mean overlap, :func:`tracked_scale`) of a peer's ``boxes`` (n_frames, 4), scored once."""
+    evaluation = score(boxes, sequence, n_frames)
+    return float(evaluation.mean_overlap), tail_scale(scale_ratios(boxes, sequence, evaluation.frames)[1])
 
 
 def peer_collapses(scales: dict, names) -> dict:
@@ -408,10 +413,9 @@ def lineage_measures(folder, sequences, trackers=LINEAGE_TRACKERS) -> tuple[dict
             boxes, _, found_notes = otb_result_boxes(folder, tracker, sequence)
             notes += found_notes
             if boxes is not None:
-                evaluation = score(boxes, sequence, len(sequence))
-                overlaps.setdefault(tracker, {})[sequence.name] = float(evaluation.mean_overlap)
-                scales.setdefault(tracker, {})[sequence.name] = tail_scale(
-                    scale_ratios(boxes, sequence, evaluation.frames)[1])
+                overlap, scale = _overlap_and_scale(boxes, sequence, len(sequence))
+                overlaps.setdefault(tracker, {})[sequence.name] = overlap
+                scales.setdefault(tracker, {})[sequence.name] = scale
     return overlaps, scales, notes
 
 
