@@ -261,35 +261,60 @@ def format_attribute_means(table: dict, columns) -> str:
     return "\n".join(lines)
 
 
-def peer_measures(cache: RunCache, sequences, max_frames, jobs) -> tuple[dict, dict]:
-    """({tracker: {sequence name: mean overlap}}, {tracker: {sequence name: :func:`tracked_scale`}})
-    for the live OpenCV trackers (cached)."""
+def peer_measures(cache: RunCache, sequences, max_frames, jobs) -> tuple[dict, dict, dict]:
+    """({tracker: {sequence name: mean overlap}}, {tracker: {sequence name: :func:`tracked_scale`}},
+    {tracker: {sequence name: :func:`frame_edge_share`}}) for the live OpenCV trackers (cached)."""
     from experiments.peers import LiveSpec, live_trackers
 
     specs = [LiveSpec(s, name, max_frames) for name in live_trackers() for s in sequences]
     results = cache.run(specs, jobs=jobs)
-    overlaps: dict = {}
-    scales: dict = {}
+    measures: tuple = ({}, {}, {})
     for spec, result in zip(specs, results):
-        overlap, scale = _overlap_and_scale(result.boxes, spec.sequence)
-        overlaps.setdefault(spec.tracker, {})[spec.sequence.name] = overlap
-        scales.setdefault(spec.tracker, {})[spec.sequence.name] = scale
-    return overlaps, scales
+        for found, value in zip(measures, _peer_tail_measures(result.boxes, spec.sequence)):
+            found.setdefault(spec.tracker, {})[spec.sequence.name] = value
+    return measures
 
 
-def _overlap_and_scale(boxes, sequence, n_frames: int | None = None) -> tuple[float, float]:
-    """(mean overlap, :func:`tracked_scale`) of a peer's ``boxes`` (n_frames, 4), scored once."""
+def _peer_tail_measures(boxes, sequence, n_frames: int | None = None) -> tuple[float, float, float]:
+    """(mean overlap, :func:`tracked_scale`, :func:`frame_edge_share`) of a peer's ``boxes``
+    (n_frames, 4), scored once."""
     evaluation = score(boxes, sequence, n_frames)
-    return float(evaluation.mean_overlap), tail_scale(scale_ratios(boxes, sequence, evaluation.frames)[1])
+    return (float(evaluation.mean_overlap), tail_scale(scale_ratios(boxes, sequence, evaluation.frames)[1]),
+            frame_edge_share(boxes, sequence, evaluation.frames))
 
 
-def peer_collapses(scales: dict, names) -> dict:
-    """{peer column: the targets among ``names`` it scores, and those collapsed}, from
-    {column: {sequence name: tracked scale}}: the same measure as NRMLC's (:func:`collapsed`), so
-    that a target that grows while a fixed-size tracker keeps its first box counts for it too."""
-    return {column: {"scored": [n for n in names if np.isfinite(values.get(n, math.nan))],
-                     "collapsed": [n for n in names if values.get(n, math.nan) < COLLAPSED_BELOW]}
-            for column, values in scales.items()}
+def frame_edge_share(boxes, sequence, frames, share: float = SCALE_SHARE) -> float:
+    """The share of the last ``share`` of the annotated ``frames`` (n,) whose box in ``boxes``
+    (n_frames, 4; 1-based) lies within 1 px of the frame's border; NaN if none there is finite.
+
+    A box driven out of the frame and clipped to it shrinks while the target does not (OpenCV
+    clips KCF's and CSRT's boxes, down to zero width); NRMLC's states are clamped inside the
+    frame, so its boxes never shrink that way.
+    """
+    height, width = sequence.frame_size
+    box = np.asarray(boxes, dtype=np.float64)[np.asarray(frames, dtype=np.int64)]
+    box = box[-max(1, math.ceil(share * len(box))):]
+    box = box[np.all(np.isfinite(box), axis=1)]
+    if not len(box):
+        return math.nan
+    at_edge = ((box[:, 0] <= 2) | (box[:, 1] <= 2) | (box[:, 0] + box[:, 2] >= width)
+               | (box[:, 1] + box[:, 3] >= height))
+    return float(at_edge.mean())
+
+
+def peer_collapses(scales: dict, names, edges: dict | None = None) -> dict:
+    """{peer column: the targets among ``names`` it scores, those collapsed, and those of them whose
+    box lies at the frame's border on at least half of the last quarter's frames}, from {column:
+    {sequence name: tracked scale}} and {column: {sequence name: :func:`frame_edge_share`}}: the
+    same measure as NRMLC's (:func:`collapsed`), so that a target that grows while a fixed-size
+    tracker keeps its first box counts for it too."""
+    edges = edges or {}
+    found = {}
+    for column, values in scales.items():
+        fallen = [n for n in names if values.get(n, math.nan) < COLLAPSED_BELOW]
+        found[column] = {"scored": [n for n in names if np.isfinite(values.get(n, math.nan))], "collapsed": fallen,
+                         "at_frame_edge": [n for n in fallen if edges.get(column, {}).get(n, math.nan) >= 0.5]}
+    return found
 
 
 def paired_difference(config_runs: dict, baseline_runs: dict, names) -> dict:
@@ -399,24 +424,22 @@ def format_table(groups: dict, columns: dict) -> str:
     return "\n".join(lines)
 
 
-def lineage_measures(folder, sequences, trackers=LINEAGE_TRACKERS) -> tuple[dict, dict, list]:
-    """({tracker: {sequence name: mean overlap}}, {tracker: {sequence name: :func:`tracked_scale`}})
-    of the OTB benchmark's own result files in ``folder`` (:mod:`nrmlc.otb_results`), scored like
-    NRMLC, and the notes of files not used."""
+def lineage_measures(folder, sequences, trackers=LINEAGE_TRACKERS) -> tuple[dict, dict, dict, list]:
+    """({tracker: {sequence name: mean overlap}}, {tracker: {sequence name: :func:`tracked_scale`}},
+    {tracker: {sequence name: :func:`frame_edge_share`}}) of the OTB benchmark's own result files in
+    ``folder`` (:mod:`nrmlc.otb_results`), scored like NRMLC, and the notes of files not used."""
     from nrmlc.otb_results import otb_result_boxes
 
-    overlaps: dict = {}
-    scales: dict = {}
+    measures: tuple = ({}, {}, {})
     notes: list = []
     for tracker in trackers:
         for sequence in sequences:
             boxes, _, found_notes = otb_result_boxes(folder, tracker, sequence)
             notes += found_notes
             if boxes is not None:
-                overlap, scale = _overlap_and_scale(boxes, sequence, len(sequence))
-                overlaps.setdefault(tracker, {})[sequence.name] = overlap
-                scales.setdefault(tracker, {})[sequence.name] = scale
-    return overlaps, scales, notes
+                for found, value in zip(measures, _peer_tail_measures(boxes, sequence, len(sequence))):
+                    found.setdefault(tracker, {})[sequence.name] = value
+    return (*measures, notes)
 
 
 def default_beside(roots, name: str) -> Path | None:
@@ -529,24 +552,27 @@ def main(argv=None) -> int:
         differences = differences_by_group(config_runs, baseline_runs, groups, seeds)
     real = [s for s in sequences if not isinstance(s, SyntheticSequence)]
     peer_scales: dict = {}
+    peer_edges: dict = {}
     if not args.no_peers:
-        live, live_scales = peer_measures(cache, sequences, args.max_frames, args.jobs)
+        live, live_scales, live_edges = peer_measures(cache, sequences, args.max_frames, args.jobs)
         for tracker, values in live.items():
             columns[f"{tracker} (OpenCV)"] = values
             peer_scales[f"{tracker} (OpenCV)"] = live_scales[tracker]
+            peer_edges[f"{tracker} (OpenCV)"] = live_edges[tracker]
         otb_results = Path(args.otb_results) if args.otb_results else default_beside(roots, "otb_results")
         if otb_results is not None and real and args.max_frames is None:
-            lineage, lineage_scales, notes = lineage_measures(otb_results, real)
+            lineage, lineage_scales, lineage_edges, notes = lineage_measures(otb_results, real)
             for tracker in LINEAGE_TRACKERS:
                 columns[f"{tracker} (OTB results)"] = lineage.get(tracker, {})
                 peer_scales[f"{tracker} (OTB results)"] = lineage_scales.get(tracker, {})
+                peer_edges[f"{tracker} (OTB results)"] = lineage_edges.get(tracker, {})
     attribute_folder = Path(args.attributes) if args.attributes else default_beside(roots, "otb_attributes")
     attribute_table, losses = None, None
     if real:
         losses = {label: {"collapsed": collapsed(scales_of(measures), names),
                           "collapse_after_loss": collapse_after_loss(measures, names),
                           "lost_early": early_losses(measures, names),
-                          "peers_collapsed": peer_collapses(peer_scales, names)}
+                          "peers_collapsed": peer_collapses(peer_scales, names, peer_edges)}
                   for label, names in groups.items() if label != "synthetic suite"}
         if attribute_folder is not None:
             from nrmlc.attributes import read_attributes
@@ -566,8 +592,9 @@ def main(argv=None) -> int:
               f"{EARLY_SHARE:.0%} on {len(found['lost_early'])} ({', '.join(found['lost_early']) or 'none'})")
         if found["peers_collapsed"]:
             print("  the peers' tracked scale below the same bound: " + "; ".join(
-                f"{column} {len(entry['collapsed'])} of {len(entry['scored'])} ({', '.join(entry['collapsed']) or 'none'})"
-                for column, entry in found["peers_collapsed"].items()))
+                f"{column} {len(entry['collapsed'])} of {len(entry['scored'])} ({', '.join(entry['collapsed']) or 'none'}"
+                + (f"; at the frame's edge: {', '.join(entry['at_frame_edge'])}" if entry["at_frame_edge"] else "")
+                + ")" for column, entry in found["peers_collapsed"].items()))
         if found["collapse_after_loss"]:
             order = found["collapse_after_loss"]
             print(f"  collapsed runs whose scale fell only after the lock was lost: "

@@ -1,5 +1,6 @@
 """experiments.devset: the development evaluation command."""
 import json
+import math
 
 import numpy as np
 import pytest
@@ -325,8 +326,8 @@ def test_the_peers_collapse_is_nrmlc_s_measure_on_their_boxes(tmp_path):
     from nrmlc.testing.otb_files import truth, write_otb_result_files
 
     class Standin:
-        def __init__(self, name, groundtruth):
-            self.name, self.groundtruth = name, groundtruth
+        def __init__(self, name, groundtruth, frame_size=(100, 200)):
+            self.name, self.groundtruth, self.frame_size = name, groundtruth, frame_size
 
         def __len__(self):
             return len(self.groundtruth)
@@ -334,10 +335,33 @@ def test_the_peers_collapse_is_nrmlc_s_measure_on_their_boxes(tmp_path):
     folder = write_otb_result_files(tmp_path)
     grown = truth()
     grown[5:, 2:] *= 2  # the target doubles in width and height; the file's boxes keep the first size
-    overlaps, scales, notes = devset.lineage_measures(folder, [Standin("Walker-2", grown)], trackers=("RectTracker",))
+    overlaps, scales, edges, notes = devset.lineage_measures(folder, [Standin("Walker-2", grown)],
+                                                             trackers=("RectTracker",))
     assert scales["RectTracker"]["Walker-2"] == pytest.approx(0.5)  # the last quarter: frames 8-9
     assert 0 < overlaps["RectTracker"]["Walker-2"] < 1
+    assert edges["RectTracker"]["Walker-2"] == 0
     found = devset.peer_collapses({"RectTracker (OTB results)": scales["RectTracker"],
                                    "lost": {"Walker-2": float("nan")}}, ["Walker-2", "Other"])
-    assert found == {"RectTracker (OTB results)": {"scored": ["Walker-2"], "collapsed": ["Walker-2"]},
-                     "lost": {"scored": [], "collapsed": []}}
+    assert found == {"RectTracker (OTB results)": {"scored": ["Walker-2"], "collapsed": ["Walker-2"],
+                                                   "at_frame_edge": []},
+                     "lost": {"scored": [], "collapsed": [], "at_frame_edge": []}}
+    # A frame 47 px wide: the boxes of frames 8-9 (x = 27, 29; w = 20) reach its right border.
+    _, scales, edges, _ = devset.lineage_measures(folder, [Standin("Walker-2", grown, (100, 47))],
+                                                  trackers=("RectTracker",))
+    assert edges["RectTracker"]["Walker-2"] == 1
+    found = devset.peer_collapses({"Rect": scales["RectTracker"]}, ["Walker-2"], {"Rect": edges["RectTracker"]})
+    assert found["Rect"]["at_frame_edge"] == ["Walker-2"]
+
+
+def test_frame_edge_share_counts_the_last_quarter_s_boxes_at_the_border():
+    class Standin:
+        frame_size = (50, 80)  # height, width
+
+    boxes = np.array([[10, 10, 20, 20]] * 6 + [[1, 10, 5, 20], [70, 10, 11, 20], [10, 31, 20, 20],
+                                                [np.nan] * 4], dtype=np.float64)
+    # the last quarter of frames 1-9: frames 7-9; frame 9 has no box; 7 touches the right border
+    # (70 + 11 >= 80), 8 the bottom (31 + 20 >= 50)
+    assert devset.frame_edge_share(boxes, Standin(), np.arange(1, 10)) == 1.0
+    assert devset.frame_edge_share(boxes, Standin(), np.arange(1, 7)) == 0.5  # frames 5-6: 6 is at the left
+    assert devset.frame_edge_share(boxes, Standin(), np.arange(1, 6)) == 0.0
+    assert math.isnan(devset.frame_edge_share(boxes, Standin(), np.array([9])))
