@@ -288,8 +288,8 @@ def frame_edge_share(boxes, sequence, frames, share: float = SCALE_SHARE) -> flo
     (n_frames, 4; 1-based) lies within 1 px of the frame's border; NaN if none there is finite.
 
     A box driven out of the frame and clipped to it shrinks while the target does not (OpenCV
-    clips KCF's and CSRT's boxes, down to zero width); NRMLC's states are clamped inside the
-    frame, so its boxes never shrink that way.
+    clips KCF's and CSRT's boxes, down to zero width). NRMLC keeps only its boxes' centres inside
+    the frame and never clips a box, so its boxes never shrink that way.
     """
     height, width = sequence.frame_size
     box = np.asarray(boxes, dtype=np.float64)[np.asarray(frames, dtype=np.int64)]
