@@ -200,8 +200,13 @@ def tail_scale(ratio: np.ndarray, share: float = SCALE_SHARE) -> float:
     """The median of the last ``share`` of ``ratio`` (n,) (:func:`scale_ratios`); NaN if none is finite."""
     if ratio.size == 0:
         return math.nan
-    tail = ratio[-max(1, math.ceil(share * len(ratio))):]
+    tail = last_share(ratio, share)
     return float(np.nanmedian(tail)) if np.isfinite(tail).any() else math.nan
+
+
+def last_share(rows: np.ndarray, share: float = SCALE_SHARE) -> np.ndarray:
+    """The last ``share`` of ``rows`` (n, ...): at least one row, ``ceil(share * n)`` in all."""
+    return rows[-max(1, math.ceil(share * len(rows))):]
 
 
 def collapsed(scales: dict, names) -> list[str]:
@@ -292,8 +297,7 @@ def frame_edge_share(boxes, sequence, frames, share: float = SCALE_SHARE) -> flo
     the frame and never clips a box, so its boxes never shrink that way.
     """
     height, width = sequence.frame_size
-    box = np.asarray(boxes, dtype=np.float64)[np.asarray(frames, dtype=np.int64)]
-    box = box[-max(1, math.ceil(share * len(box))):]
+    box = last_share(np.asarray(boxes, dtype=np.float64)[np.asarray(frames, dtype=np.int64)], share)
     box = box[np.all(np.isfinite(box), axis=1)]
     if not len(box):
         return math.nan
