@@ -1,5 +1,5 @@
 import sys
 
-from nrmlc.cli import main
+from nrmlc.cli import console_main
 
-sys.exit(main())
+sys.exit(console_main())

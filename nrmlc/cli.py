@@ -175,15 +175,17 @@ def build_parser() -> argparse.ArgumentParser:
 def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(_join_negative_values(list(sys.argv[1:] if argv is None else argv)))
+    from nrmlc.errors import interrupt_requested
+
     # Warnings as one "warning: ..." line each (no source line); restored on return
     # so that calling main() from Python does not change the caller's formatting.
     format_warning = warnings.formatwarning
-    warnings.formatwarning = lambda message, category, *rest: f"warning: {message}\n"
+    # After an interrupt, none: what it cut short warns of its consequences (a numba cache not written).
+    warnings.formatwarning = lambda message, category, *rest: (
+        "" if interrupt_requested.is_set() else f"warning: {message}\n")
     # SIGTERM and SIGHUP (the terminal closed, an ssh session lost) end a run like Ctrl-C: outputs
     # in progress are dropped, their temporary files removed, earlier files kept. All three also
     # set interrupt_requested, in case the KeyboardInterrupt lands in a finaliser.
-    from nrmlc.errors import interrupt_requested
-
     interrupt_requested.clear()
     unraisable_hook = sys.unraisablehook
     sys.unraisablehook = functools.partial(_quiet_lost_interrupt, unraisable_hook)
@@ -211,9 +213,21 @@ def threading_main() -> bool:
 
 def _quiet_lost_interrupt(previous_hook, unraisable) -> None:
     """Python's report of an exception raised in a finaliser, except our own interrupt's (the
-    flag carries it on, and the run ends with the one line "interrupted")."""
-    if not (isinstance(unraisable.exc_type, type) and issubclass(unraisable.exc_type, KeyboardInterrupt)):
+    flag carries it on, and the run ends with the one line "interrupted"), and except any once the
+    interrupt has come: it can land inside a constructor (llvmlite's ``ObjectRef.__init__`` while
+    numba compiles), whose half-built object then fails in its ``__del__``."""
+    from nrmlc.errors import interrupt_requested
+
+    lost_interrupt = isinstance(unraisable.exc_type, type) and issubclass(unraisable.exc_type, KeyboardInterrupt)
+    if not (lost_interrupt or interrupt_requested.is_set()):
         previous_hook(unraisable)
+
+
+def console_main() -> int:
+    """The ``nrmlc`` command and ``python -m nrmlc``: :func:`main`, with :func:`_quiet_lost_interrupt`
+    kept on for the rest of the process, since the half-built objects are collected at its exit."""
+    sys.unraisablehook = functools.partial(_quiet_lost_interrupt, sys.unraisablehook)
+    return main()
 
 
 def _terminate(signum, frame) -> None:
