@@ -86,7 +86,7 @@ figures: $(STAMP)
 	    $(if $(MAX_FRAMES),--max-frames $(MAX_FRAMES)) $(if $(ONLY),--only "$(ONLY)") $(if $(DRY_RUN),--dry-run) $(if $(DASK),--dask "$(DASK)")
 
 theorem: $(STAMP)
-	$(PY) -m experiments.theorem1_checks
+	$(PY) -m experiments.paper.theorem1_checks
 
 bench: $(STAMP)
 	$(PY) -m experiments.bench $(if $(DATA),--data "$(DATA)") $(if $(OUT),--out "$(OUT)")

@@ -702,7 +702,7 @@ def bench_startup(warm_repeats: int = 2) -> dict:
 _GRID_CHILD = r"""
 import json, os, sys, tempfile, time
 from nrmlc.data import SyntheticSequence, SyntheticSpec
-from nrmlc.runner import RunCache, RunSpec, prepare_kernels, process_pool
+from nrmlc.workbench.runner import RunCache, RunSpec, prepare_kernels, process_pool
 from nrmlc.tracker.params import TrackerParams
 n_runs, n_frames, workers, dask = int(sys.argv[1]), int(sys.argv[2]), int(sys.argv[3]), sys.argv[4]
 specs = [RunSpec(SyntheticSequence(SyntheticSpec(name=f"grid-{k}", seed=k, n_frames=n_frames)), TrackerParams(),

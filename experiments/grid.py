@@ -11,7 +11,7 @@ Every script in :data:`experiments.run_all.SCRIPTS` defines
 - ``report(context, data) -> section``: writes ``<STEM>.csv/.json`` and returns
   its section of ``REPORT.md`` (``title``, ``figures``, ``markdown``);
 - ``main(argv=None)`` (``main = script_entry(__name__)``), so that
-  ``python -m experiments.fig4_lambda_sweep --data ../shared/data/sequences``
+  ``python -m experiments.paper.fig4_lambda_sweep --data ../shared/data/sequences``
   works alone, with the options of ``make figures``.
 
 :func:`run_script` is what ``run_all`` does with each of them.
@@ -27,7 +27,7 @@ from pathlib import Path
 from experiments.sequence_sets import DEVELOPMENT_SEQUENCES, PAPER_SEQUENCES
 from nrmlc.config import data_root_from_env
 from nrmlc.io import write_json
-from nrmlc.runner import DEFAULT_CACHE, RunCache, RunSpec, frames_tracked
+from nrmlc.workbench.runner import DEFAULT_CACHE, RunCache, RunSpec, frames_tracked
 from nrmlc.tracker.params import PRESETS, TrackerParams
 
 REPO_ROOT = Path(__file__).resolve().parent.parent
@@ -107,7 +107,7 @@ class Context:
 
                 sequences = synthetic_suite(n_sequences=self.n_synthetic)
             elif self.only_sequences is not None:
-                from nrmlc.results_layout import select_sequences
+                from nrmlc.workbench.results_layout import select_sequences
 
                 # Only the named folders are opened: the others' warnings are not this run's.
                 sequences = select_sequences(self.data_root, list(self.only_sequences))
@@ -234,11 +234,11 @@ def score(boxes, sequence, n_frames: int | None = None):
 
     Returns
     -------
-    nrmlc.metrics.Evaluation
+    nrmlc.workbench.metrics.Evaluation
     """
     import numpy as np
 
-    from nrmlc.metrics import evaluate
+    from nrmlc.workbench.metrics import evaluate
 
     n = frames_tracked(sequence, len(boxes) if n_frames is None else n_frames)
     return evaluate(np.asarray(boxes, dtype=np.float64)[:n], sequence.groundtruth[:n])

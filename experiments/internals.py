@@ -11,7 +11,7 @@ Two things live here:
   element statistics of ``A``, the tracker's own codes, and the mean value of
   every template and candidate. Results are cached on disk (atomic ``.npz``),
   keyed by the sequence, the parameters, the seed, the sampling budget, the
-  collector version and :func:`nrmlc.runner.code_version`.
+  collector version and :func:`nrmlc.workbench.runner.code_version`.
 * numpy solvers of the paper's closed forms (:func:`ridge_inverse`,
   :func:`sum_to_one_codes`, :func:`dictionary_weights`, :func:`strictly_dd`),
   used to re-solve the *same* candidates for every lambda.
@@ -26,7 +26,7 @@ from typing import ClassVar
 
 import numpy as np
 
-from nrmlc.runner import TrackerJob
+from nrmlc.workbench.runner import TrackerJob
 from nrmlc.tracker.params import TrackerParams
 
 #: Bump when the recorded content changes (invalidates the collection cache).
@@ -182,7 +182,7 @@ def _stack_records(records: list[dict]) -> dict:
 class Collection(TrackerJob):
     """Track a sequence and record the coding step's internals at sampled frames.
 
-    A job of :class:`nrmlc.runner.RunCache` (stored under ``<cache>/analysis/``),
+    A job of :class:`nrmlc.workbench.runner.RunCache` (stored under ``<cache>/analysis/``),
     keyed by the sequence, the parameters, the seed, the sampling budget, the
     collector version and the code version.
     """

@@ -1,6 +1,6 @@
 """Peer trackers: OpenCV trackers run live, and the shipped per-frame peer results.
 
-Two sources of peer numbers, both scored with :mod:`nrmlc.metrics` against
+Two sources of peer numbers, both scored with :mod:`nrmlc.workbench.metrics` against
 *our* ground truth, exactly like NRMLC:
 
 1. **Live OpenCV trackers** (:func:`live_trackers`): ``cv2.TrackerMIL`` always
@@ -38,7 +38,7 @@ from typing import ClassVar
 import numpy as np
 
 from experiments.sequence_sets import PAPER_NAME_OF, paper_name
-from nrmlc.runner import CachedJob, RunCache, sequence_identity
+from nrmlc.workbench.runner import CachedJob, RunCache, sequence_identity
 
 #: Bump when the live runner's behaviour changes (it is part of every key, as is each
 #: tracker's entry of :data:`LIVE_PARAMETERS`).
@@ -120,7 +120,7 @@ def live_label(name: str) -> str:
 class LiveSpec(CachedJob):
     """One live OpenCV run: ``tracker`` on the first ``n_frames`` frames of ``sequence``.
 
-    A job of :class:`nrmlc.runner.RunCache`, stored under ``<cache>/peers/``; its key
+    A job of :class:`nrmlc.workbench.runner.RunCache`, stored under ``<cache>/peers/``; its key
     does not depend on our code version (OpenCV's version is in it instead).
     """
 
@@ -296,7 +296,7 @@ def shipped_results(peer_root, sequence, trackers=SHIPPED_TRACKERS) -> Shipped:
         ``notes`` with the reason it was not used.
     """
     from nrmlc.data import read_box_file
-    from nrmlc.metrics import first_box_mismatch
+    from nrmlc.workbench.metrics import first_box_mismatch
 
     found = Shipped()
     if peer_root is None:

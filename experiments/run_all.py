@@ -39,20 +39,20 @@ from nrmlc.tracker.generative import LOCAL_SIZE
 
 #: Every script, in the paper's order.
 SCRIPTS = (
-    "experiments.theorem1_checks",
-    "experiments.fig1_coefficients",
-    "experiments.fig2_mean_gray",
-    "experiments.stats_nonnegativity",
-    "experiments.table1_table2_accuracy",
-    "experiments.fig3_qualitative",
-    "experiments.fig4_lambda_sweep",
-    "experiments.fig_occlusion",
-    "experiments.ablations",
-    "experiments.ablation_per_sequence_motion",
-    "experiments.ablation_oracle_recentring",
-    "experiments.ablation_oracle_gate",
-    "experiments.failure_mechanisms",
-    "experiments.scale_likelihood",
+    "experiments.paper.theorem1_checks",
+    "experiments.paper.fig1_coefficients",
+    "experiments.paper.fig2_mean_gray",
+    "experiments.paper.stats_nonnegativity",
+    "experiments.paper.table1_table2_accuracy",
+    "experiments.paper.fig3_qualitative",
+    "experiments.paper.fig4_lambda_sweep",
+    "experiments.paper.fig_occlusion",
+    "experiments.paper.ablations",
+    "experiments.paper.ablation_per_sequence_motion",
+    "experiments.paper.ablation_oracle_recentring",
+    "experiments.paper.ablation_oracle_gate",
+    "experiments.paper.failure_mechanisms",
+    "experiments.paper.scale_likelihood",
 )
 
 #: Tracking speed per worker for the time estimate: measured on this 2-core machine, the

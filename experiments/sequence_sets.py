@@ -6,7 +6,7 @@
   ``../shared/tools/lay_sequences.py`` lays out (:data:`MORE_DEVELOPMENT`).
 - :data:`DEVELOPMENT_A` and :data:`DEVELOPMENT_B`: the choosing and the confirming
   half of them, split once before any screening on the larger set, by
-  :mod:`experiments.development_split` (which says how). A change is adopted only by
+  :mod:`experiments.development.development_split` (which says how). A change is adopted only by
   :data:`ADOPTION_RULE`.
 - :data:`PAPER_SEQUENCES`: the paper's sequences we have; reported, never
   chosen on. In the order of the paper's Tables I and II.
@@ -36,7 +36,7 @@ MORE_DEVELOPMENT = ("Bird1", "BlurBody", "BlurCar2", "BlurFace", "BlurOwl", "Boy
 DEVELOPMENT_SEQUENCES = FIRST_DEVELOPMENT + MORE_DEVELOPMENT
 
 #: The choosing half (screen here) and the confirming half (a change must also gain here), drawn
-#: once on 2026-12-01 before any screening on the 36 by ``python -m experiments.development_split
+#: once on 2026-12-01 before any screening on the 36 by ``python -m experiments.development.development_split
 #: --peers PEERS.json --attributes otb_attributes --draws 20000 --seed 0``: the three OpenCV peers'
 #: mean overlap 0.354 (A) and 0.364 (B); attribute counts within one of each other (IV 6 / 5,
 #: SV 11 / 12, OCC 9 / 10, FM 9 / 8, ...); 6 of the first 12 targets in each.
@@ -49,7 +49,7 @@ DEVELOPMENT_B = ("Basketball", "BlurBody", "BlurCar2", "BlurOwl", "Car11", "Coup
 #: The fewest seeds a paired gain is judged on.
 MIN_SEEDS = 3
 
-#: The rule every default is adopted by (:func:`experiments.devset.adopted` applies it).
+#: The rule every default is adopted by (:func:`experiments.development.devset.adopted` applies it).
 ADOPTION_RULE = (f"a change is adopted only when its paired gain over at least {MIN_SEEDS} seeds exceeds its standard "
                  "error on half A, is positive on half B, and does not lose on the synthetic suite beyond "
                  "its standard error")

@@ -1,7 +1,7 @@
 """nrmlc: Visual Tracking via Nonnegative Regularization Multiple Locality Coding.
 
 ``from nrmlc import NRMLCTracker`` gives the tracker (got10k-style ``init`` /
-``update``); :mod:`nrmlc.data`, :mod:`nrmlc.metrics` and :mod:`nrmlc.geometry`
+``update``); :mod:`nrmlc.data`, :mod:`nrmlc.workbench.metrics` and :mod:`nrmlc.geometry`
 are usable on their own.
 """
 __version__ = "0.1.0"

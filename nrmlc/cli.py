@@ -19,11 +19,11 @@ from pathlib import Path
 def _cmd_evaluate(args: argparse.Namespace) -> int:
     import dataclasses
 
-    from nrmlc.compare import EvaluateOptions, run_evaluate_file, run_evaluate_folders
+    from nrmlc.workbench.compare import EvaluateOptions, run_evaluate_file, run_evaluate_folders
 
     options = EvaluateOptions(**{f.name: (tuple(getattr(args, f.name)) if f.name in ("results", "name_map")
                                           else getattr(args, f.name)) for f in dataclasses.fields(EvaluateOptions)})
-    if options.data is not None:  # result folders of any number of trackers (nrmlc/compare.py)
+    if options.data is not None:  # result folders of any number of trackers (nrmlc/workbench/compare.py)
         return run_evaluate_folders(options)
     return run_evaluate_file(options)
 
@@ -87,7 +87,7 @@ def _add_track(commands) -> None:
 
 
 def _add_benchmark(commands) -> None:
-    from nrmlc.benchmark import add_benchmark_command
+    from nrmlc.workbench.benchmark import add_benchmark_command
 
     add_benchmark_command(commands)
 
@@ -144,7 +144,7 @@ def build_parser() -> argparse.ArgumentParser:
     evaluate.add_argument("--groundtruth", metavar="G.txt", help="ground-truth boxes (OTB groundtruth_rect.txt)")
     evaluate.add_argument("--json", action="store_true", help="print the summary as JSON")
     evaluate.add_argument("--include-first", action="store_true", help="also score frame 1 (the given box)")
-    from nrmlc.compare import add_evaluate_arguments
+    from nrmlc.workbench.compare import add_evaluate_arguments
 
     add_evaluate_arguments(evaluate)
     evaluate.set_defaults(run=_cmd_evaluate)

@@ -82,7 +82,7 @@ def run_track(args: argparse.Namespace) -> int:
     from nrmlc.data import open_sequence
     from nrmlc.data.boxes import parse_box_line
     from nrmlc.errors import ParameterError
-    from nrmlc.metrics import evaluate
+    from nrmlc.workbench.metrics import evaluate
     from nrmlc.tracker.params import TrackerParams, parse_param_assignment
     from nrmlc.errors import interrupt_requested
     from nrmlc.tracker.loop import track_sequence

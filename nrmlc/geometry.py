@@ -140,7 +140,7 @@ def usable_boxes(boxes: np.ndarray) -> np.ndarray:
 
 def box_iou(first: np.ndarray, second: np.ndarray) -> float:
     """Intersection over union of two boxes ``(x, y, w, h)`` with ``w, h > 0``, as continuous
-    rectangles (what :func:`nrmlc.metrics.overlaps` gives them; the tracker's own, for
+    rectangles (what :func:`nrmlc.workbench.metrics.overlaps` gives them; the tracker's own, for
     ``expert_blend_iou``)."""
     width = min(first[0] + first[2], second[0] + second[2]) - max(first[0], second[0])
     height = min(first[1] + first[3], second[1] + second[3]) - max(first[1], second[1])

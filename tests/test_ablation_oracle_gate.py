@@ -1,11 +1,11 @@
-"""Tests for experiments/ablation_oracle_gate.py: the gated tracker against the plain one, and the
+"""Tests for experiments/paper/ablation_oracle_gate.py: the gated tracker against the plain one, and the
 gate's decisions where the answer is known."""
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from experiments.ablation_oracle_gate import OracleGateRun, OracleGateTracker
+from experiments.paper.ablation_oracle_gate import OracleGateRun, OracleGateTracker
 from nrmlc.data import synthetic_suite
 from nrmlc.tracker.algorithm import NRMLCTracker
 from nrmlc.tracker.params import TrackerParams

@@ -7,13 +7,14 @@ from fractions import Fraction
 import numpy as np
 import pytest
 
-from experiments import (
-    internals, fig1_coefficients, fig2_mean_gray, fig_occlusion, stats_nonnegativity, theorem1_checks,
+from experiments import internals
+from experiments.paper import (
+    fig1_coefficients, fig2_mean_gray, fig_occlusion, stats_nonnegativity, theorem1_checks,
 )
 from experiments.internals import Budget
 from experiments.grid import Context, run_script
 from nrmlc.data import synthetic_suite
-from nrmlc.runner import RunCache
+from nrmlc.workbench.runner import RunCache
 
 TINY = Budget(max_frames=None, every=4, n_candidates=20, max_sequences=2, seeds=(0,), n_particles=80)
 

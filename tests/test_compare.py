@@ -12,13 +12,13 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from nrmlc.attributes import ATTRIBUTES, read_attribute_file, read_attributes
+from nrmlc.workbench.attributes import ATTRIBUTES, read_attribute_file, read_attributes
 from nrmlc.cli import main
-from nrmlc.compare import compare
+from nrmlc.workbench.compare import compare
 from nrmlc.data import open_sequence
 from nrmlc.testing.scenes import write_small_suite
 from nrmlc.errors import DataError
-from nrmlc.metrics import evaluate
+from nrmlc.workbench.metrics import evaluate
 
 
 def run_main(argv, capsys):

@@ -1,11 +1,11 @@
-"""experiments.devset: the development evaluation command."""
+"""experiments.development.devset: the development evaluation command."""
 import json
 import math
 
 import numpy as np
 import pytest
 
-from experiments import devset
+from experiments.development import devset
 from nrmlc.errors import NrmlcError
 
 
@@ -113,7 +113,7 @@ def test_sequences_come_from_several_roots(tmp_path):
 
 
 def test_no_default_data_root_is_said_in_one_warning_line(tmp_path, monkeypatch, capsys):
-    from experiments import devset
+    from experiments.development import devset
 
     monkeypatch.delenv("NRMLC_DATA", raising=False)
     monkeypatch.delenv(devset.MORE_DATA_ENV, raising=False)
@@ -125,7 +125,7 @@ def test_no_default_data_root_is_said_in_one_warning_line(tmp_path, monkeypatch,
 
 
 def test_screen_gives_each_variant_its_paired_differences_and_verdict(tmp_path, capsys):
-    from experiments import screen
+    from experiments.development import screen
 
     out = tmp_path / "screen.json"
     argv = ["--data", str(tmp_path), "--seeds", "0", "--synthetic", "1", "--jobs", "1",
@@ -152,7 +152,7 @@ def test_screen_gives_each_variant_its_paired_differences_and_verdict(tmp_path, 
 
 
 def test_screen_variant_syntax():
-    from experiments import screen
+    from experiments.development import screen
 
     params = screen.parse_variant("v", "motion_sigmas=[4,4,0.01,0,0.005,0],alpha=3", "default")
     assert params.motion_sigmas == (4.0, 4.0, 0.01, 0.0, 0.005, 0.0) and params.alpha == 3.0
@@ -162,7 +162,7 @@ def test_screen_variant_syntax():
 
 
 def test_the_committed_split_keeps_videos_together_and_halves_balanced():
-    from experiments import development_split
+    from experiments.development import development_split
     from experiments.sequence_sets import (DEVELOPMENT_A, DEVELOPMENT_B, DEVELOPMENT_SEQUENCES,
                                            FIRST_DEVELOPMENT)
 
@@ -174,7 +174,7 @@ def test_the_committed_split_keeps_videos_together_and_halves_balanced():
 
 
 def test_balanced_split_by_hand():
-    from experiments import development_split
+    from experiments.development import development_split
 
     targets = list(development_split.FIRST_TARGETS) + [f"t{i}" for i in range(6)]
     difficulty = np.arange(len(targets), dtype=float)
@@ -230,10 +230,10 @@ def test_a_collapse_is_told_apart_from_a_box_that_shrank_after_the_loss():
 
 
 def test_a_baseline_is_carried_from_another_code_version_only_when_bit_identical(tmp_path):
-    from experiments import screen
+    from experiments.development import screen
     from experiments.grid import specs_for
     from nrmlc.data import synthetic_suite
-    from nrmlc.runner import RunCache
+    from nrmlc.workbench.runner import RunCache
     from nrmlc.tracker.params import TrackerParams
 
     cache = RunCache(tmp_path / "cache")
@@ -276,7 +276,7 @@ def test_fewer_seeds_than_the_rule_needs_are_warned_in_one_line(capsys):
 
 
 def test_screen_pool_joins_disjoint_seeds_and_rejudges(tmp_path, capsys):
-    from experiments import screen
+    from experiments.development import screen
 
     groups = {"A": ["a1", "a2"], "B": ["b1"], "synthetic suite": ["s1"]}
 

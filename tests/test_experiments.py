@@ -108,7 +108,7 @@ def test_rerun_recomputes_nothing(grid):
 
 def test_per_sequence_motion_conversion():
     """IVT's additive affsig -> nrmlc's relative sigmas, checked by hand for Car4 (lineage box 200x150)."""
-    from experiments.ablation_per_sequence_motion import converted_sigmas
+    from experiments.paper.ablation_per_sequence_motion import converted_sigmas
 
     sigmas = converted_sigmas((4, 4, 0.02, 0.015, 0.005, 0.001), (200.0, 150.0), (70, 51, 107, 87), 32)
     assert sigmas == pytest.approx((4 * 107 / 200, 4 * 107 / 200, 0.02 / 6.25, 0.015, 0.005 / 0.75, 0.001))
@@ -117,7 +117,7 @@ def test_per_sequence_motion_conversion():
 def test_per_sequence_motion_runs_and_shares_the_table_runs(grid, monkeypatch):
     """With a classic entry for the synthetic sequence, the default column is Table II's own runs
     (from the cache) and the per-sequence column is a new run with the converted sigmas."""
-    from experiments import ablation_per_sequence_motion as script
+    from experiments.paper import ablation_per_sequence_motion as script
 
     tmp, _, _ = grid
     monkeypatch.delenv("NRMLC_DATA", raising=False)
@@ -220,7 +220,7 @@ def test_sequence_subset(tmp_path, monkeypatch):
 
 
 def test_capped_table_marks_the_full_sequence_paper_numbers():
-    from experiments import table1_table2_accuracy as table
+    from experiments.paper import table1_table2_accuracy as table
 
     cells = {"Car4": {table.OURS: {"overlap": 0.5, "source": "measured"},
                       table.OURS_PAPER: {"overlap": 0.9, "source": "paper"}}}
@@ -259,7 +259,7 @@ def test_paper_tables_are_complete():
 
 
 def test_frame_choice_and_rect_conversion():
-    from experiments.fig3_qualitative import frame_indices
+    from experiments.paper.fig3_qualitative import frame_indices
 
     assert frame_indices(100) == [25, 50, 74, 99]
     assert frame_indices(1) == [0]
@@ -294,7 +294,7 @@ def test_every_switch_has_ablation_rows(monkeypatch):
     non-default row changing only what its family is about."""
     import dataclasses
 
-    from experiments.ablations import families
+    from experiments.paper.ablations import families
     from experiments.grid import Context
     from experiments.grid import params_differences
     from nrmlc.tracker.params import TrackerParams
@@ -318,7 +318,7 @@ def test_every_switch_has_ablation_rows(monkeypatch):
 def test_a_stated_value_the_default_departs_from_has_a_row_with_the_paper_value(monkeypatch):
     """n_negative (paper 150, default 100) gets an ablation family whose second row restores the
     paper's count and changes nothing else."""
-    from experiments.ablations import families
+    from experiments.paper.ablations import families
     from experiments.grid import Context, params_differences
     from nrmlc.tracker.params import TrackerParams
 
@@ -378,7 +378,7 @@ def test_make_figures_prints_warnings_as_one_line(tmp_path, capsys):
 
 
 def test_a_script_with_nothing_to_show_draws_no_placeholder(tmp_path):
-    from experiments import ablation_per_sequence_motion as motion
+    from experiments.paper import ablation_per_sequence_motion as motion
     from experiments.grid import Context, run_script
 
     context = Context(figures_dir=tmp_path, n_synthetic=1)
@@ -388,7 +388,7 @@ def test_a_script_with_nothing_to_show_draws_no_placeholder(tmp_path):
 
 
 def test_fig4_on_synthetic_data_leaves_out_the_papers_references(tmp_path, monkeypatch):
-    from experiments import fig4_lambda_sweep as fig4
+    from experiments.paper import fig4_lambda_sweep as fig4
 
     labels = {}
     monkeypatch.setattr(fig4, "save_figure", lambda fig, path, **kwargs: labels.__setitem__(

@@ -1,4 +1,4 @@
-"""The offline frame-by-frame choice between two runs (experiments/expert_choice.py)."""
+"""The offline frame-by-frame choice between two runs (experiments/development/expert_choice.py)."""
 from __future__ import annotations
 
 import json
@@ -6,7 +6,7 @@ import json
 import numpy as np
 import pytest
 
-from experiments import expert_choice
+from experiments.development import expert_choice
 from nrmlc.errors import NrmlcError
 from nrmlc.tracker.loop import TrackResult
 

@@ -8,7 +8,7 @@ from nrmlc import NRMLCTracker, TrackerParams
 from nrmlc.data import SyntheticSequence, SyntheticSpec
 from nrmlc.errors import ParameterError
 from nrmlc.geometry import box_iou
-from nrmlc.metrics import overlaps
+from nrmlc.workbench.metrics import overlaps
 from nrmlc.tracker.algorithm import blend_experts, experts_output, held_size
 from nrmlc.tracker.loop import track_sequence
 from nrmlc.tracker.params import LINEAGE_MOTION_SIGMAS

@@ -1,4 +1,4 @@
-"""Tests for experiments/failure_mechanisms.py: the measures on hand-made runs whose answers are
+"""Tests for experiments/paper/failure_mechanisms.py: the measures on hand-made runs whose answers are
 known, and the script end to end on a tiny synthetic grid."""
 from __future__ import annotations
 
@@ -7,10 +7,10 @@ import json
 import numpy as np
 import pytest
 
-from experiments import failure_mechanisms as script
+from experiments.paper import failure_mechanisms as script
 from experiments.grid import Context, context_from_args, run_script
 from nrmlc.data import synthetic_suite
-from nrmlc.runner import RunCache
+from nrmlc.workbench.runner import RunCache
 from nrmlc.tracker.loop import TrackResult
 
 N = 40

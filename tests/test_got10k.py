@@ -25,11 +25,11 @@ from got10k.trackers import Tracker  # noqa: E402
 from PIL import Image  # noqa: E402
 
 from nrmlc.cli import main  # noqa: E402
-from nrmlc.compare import compare  # noqa: E402
+from nrmlc.workbench.compare import compare  # noqa: E402
 from nrmlc.data import synthetic_suite  # noqa: E402
 from nrmlc.io import write_boxes  # noqa: E402
-from nrmlc.metrics import overlaps  # noqa: E402
-from nrmlc.toolkits import NRMLCGot10k  # noqa: E402
+from nrmlc.workbench.metrics import overlaps  # noqa: E402
+from nrmlc.workbench.toolkits import NRMLCGot10k  # noqa: E402
 from nrmlc.tracker.algorithm import NRMLCTracker  # noqa: E402
 
 FAST = dict(n_particles=50, n_positive=10, n_negative=20, max_positive=20)

@@ -23,12 +23,12 @@ import pytest
 import scipy.io
 
 from nrmlc import io
-from nrmlc.benchmark import run_benchmark
-from nrmlc.results_layout import MANIFEST_NAME
+from nrmlc.workbench.benchmark import run_benchmark
+from nrmlc.workbench.results_layout import MANIFEST_NAME
 from nrmlc.data import list_sequences, open_sequence, read_box_file, synthetic_suite, write_otb_sequence
 from nrmlc.data import fingerprint
 from nrmlc.errors import DataError, OutputError, ParameterError
-from nrmlc.runner import RunCache, RunSpec
+from nrmlc.workbench.runner import RunCache, RunSpec
 from nrmlc.tracker.algorithm import NRMLCTracker
 from nrmlc.tracker.params import TrackerParams
 from nrmlc.tracker.loop import track_sequence

@@ -1,4 +1,4 @@
-"""Tests for nrmlc.metrics (OTB one-pass evaluation)."""
+"""Tests for nrmlc.workbench.metrics (OTB one-pass evaluation)."""
 from __future__ import annotations
 
 import json
@@ -12,7 +12,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from nrmlc.errors import DataError, ParameterError
-from nrmlc.metrics import (
+from nrmlc.workbench.metrics import (
     PRECISION_THRESHOLDS,
     SUCCESS_THRESHOLDS,
     Evaluation,

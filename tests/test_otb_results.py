@@ -1,4 +1,4 @@
-"""The OTB toolkit's ``<Seq>_<Tracker>.mat`` result files (nrmlc/otb_results.py) and their use in
+"""The OTB toolkit's ``<Seq>_<Tracker>.mat`` result files (nrmlc/workbench/otb_results.py) and their use in
 ``nrmlc evaluate``: small files written for the tests by :mod:`nrmlc.testing.otb_files`, and the
 benchmark's real files when they are on this machine.
 """
@@ -13,11 +13,11 @@ import numpy as np
 import pytest
 
 from nrmlc.cli import main
-from nrmlc.compare import compare
+from nrmlc.workbench.compare import compare
 from nrmlc.data import open_sequence, read_box_file
 from nrmlc.errors import DataError, ParameterError
-from nrmlc.metrics import evaluate, overlaps
-from nrmlc.otb_results import (
+from nrmlc.workbench.metrics import evaluate, overlaps
+from nrmlc.workbench.otb_results import (
     find_otb_result,
     ivt_affine_boxes,
     l1_affine_boxes,

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from nrmlc import NRMLCTracker, TrackerParams
-from nrmlc.metrics import overlaps
+from nrmlc.workbench.metrics import overlaps
 from nrmlc.testing.scenes import jump_scene
 from nrmlc.tracker.redetect import REDETECT_TRIGGER, needs_search
 

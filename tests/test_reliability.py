@@ -21,7 +21,7 @@ import pytest
 from nrmlc import io
 from nrmlc.data import open_sequence, synthetic_suite, write_otb_sequence
 from nrmlc.errors import ParameterError
-from nrmlc.metrics import evaluate
+from nrmlc.workbench.metrics import evaluate
 from nrmlc.data.image import as_gray_frame
 from nrmlc.geometry import clip_initial_box
 from nrmlc.tracker.algorithm import FrameResult, NRMLCTracker

@@ -1,4 +1,4 @@
-"""nrmlc.runner: cached, resumable grids of runs. Work is never lost.
+"""nrmlc.workbench.runner: cached, resumable grids of runs. Work is never lost.
 
 - a grid killed with SIGKILL part-way resumes without recomputing finished
   runs and leaves no corrupt file;
@@ -22,9 +22,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-import nrmlc.runner as runner
+import nrmlc.workbench.runner as runner
 from nrmlc.data import SyntheticSequence, SyntheticSpec
-from nrmlc.runner import RunCache, RunSpec, code_version, sequence_identity
+from nrmlc.workbench.runner import RunCache, RunSpec, code_version, sequence_identity
 from nrmlc.tracker.params import TrackerParams
 from nrmlc.tracker.loop import TrackResult
 
@@ -153,7 +153,7 @@ def test_a_numba_target_this_cpu_cannot_run_is_refused_in_one_line(monkeypatch):
         runner.check_numba_target()
     assert "\n" not in str(caught.value) and len(children) == 1
     argv, env = children[0]
-    assert "warm_up()" in argv[-1] and env["PYTHONPATH"].split(os.pathsep)[0] == str(Path(runner.__file__).parents[1])
+    assert "warm_up()" in argv[-1] and env["PYTHONPATH"].split(os.pathsep)[0] == str(Path(runner.__file__).parents[2])
     with pytest.raises(runner.ParameterError):  # remembered: not probed twice
         runner.check_numba_target()
     assert len(children) == 1
@@ -284,7 +284,7 @@ def test_pool_failure_keeps_the_finished_runs(tmp_path, monkeypatch):
 # ------------------------------------------------------ killed and resumed
 GRID_SCRIPT = """
 import sys, time
-import nrmlc.runner as runner
+import nrmlc.workbench.runner as runner
 from nrmlc.data import SyntheticSequence, SyntheticSpec
 from nrmlc.tracker.params import TrackerParams
 
@@ -392,7 +392,7 @@ def test_ensure_recomputes_a_truncated_file(tmp_path, counted):
 # -------------------------------------------- process pools and OpenMP
 FORK_SCRIPT = """
 import sys
-import nrmlc.runner as runner
+import nrmlc.workbench.runner as runner
 from nrmlc.data import SyntheticSequence, SyntheticSpec
 from nrmlc.tracker.params import TrackerParams
 
@@ -485,7 +485,7 @@ def test_kernels_cached_follows_numba_index_files(tmp_path, monkeypatch):
 
 ORPHAN_SCRIPT = """
 import os, sys, time
-import nrmlc.runner as runner
+import nrmlc.workbench.runner as runner
 
 
 class Sleeper:
@@ -554,7 +554,7 @@ def test_pool_workers_end_when_their_parent_is_killed(tmp_path):
 
 def test_negative_shares_are_recorded_only_on_request_and_keyed_apart():
     from nrmlc.data import SyntheticSequence, SyntheticSpec
-    from nrmlc.runner import RunSpec
+    from nrmlc.workbench.runner import RunSpec
 
     sequence = SyntheticSequence(SyntheticSpec(name="shares", seed=0, n_frames=4))
     plain = RunSpec(sequence, TrackerParams(n_particles=20), n_frames=4)
@@ -568,11 +568,11 @@ def test_negative_shares_are_recorded_only_on_request_and_keyed_apart():
 
 
 def test_every_job_class_follows_the_one_job_contract():
-    from experiments.ablation_oracle_gate import OracleGateRun
+    from experiments.paper.ablation_oracle_gate import OracleGateRun
     from experiments.internals import Collection
     from experiments.peers import LiveSpec
-    from experiments.scale_likelihood import ScaleProfile
-    from nrmlc.runner import CachedJob, Job
+    from experiments.paper.scale_likelihood import ScaleProfile
+    from nrmlc.workbench.runner import CachedJob, Job
 
     for cls in (RunSpec, OracleGateRun, Collection, LiveSpec, ScaleProfile):
         assert issubclass(cls, CachedJob) and isinstance(cls.folder, str)

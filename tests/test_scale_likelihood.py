@@ -1,4 +1,4 @@
-"""experiments.scale_likelihood: the probe leaves tracking alone, the measures count what they say."""
+"""experiments.paper.scale_likelihood: the probe leaves tracking alone, the measures count what they say."""
 from __future__ import annotations
 
 import json
@@ -6,11 +6,11 @@ import json
 import numpy as np
 import pytest
 
-from experiments import scale_likelihood
+from experiments.paper import scale_likelihood
 from experiments.grid import Context, run_script
-from experiments.scale_likelihood import SCALES, ScaleProfile, profile_measures
+from experiments.paper.scale_likelihood import SCALES, ScaleProfile, profile_measures
 from nrmlc.data import SyntheticSequence, SyntheticSpec, synthetic_suite
-from nrmlc.runner import RunCache
+from nrmlc.workbench.runner import RunCache
 from nrmlc.tracker import track_sequence
 from nrmlc.tracker.params import TrackerParams
 

@@ -5,7 +5,7 @@ import pytest
 from nrmlc import NRMLCTracker, TrackerParams
 from nrmlc.data import SyntheticSequence, SyntheticSpec
 from nrmlc.errors import ParameterError
-from nrmlc.metrics import evaluate
+from nrmlc.workbench.metrics import evaluate
 from nrmlc.tracker import track_sequence
 
 FAST = dict(n_particles=150)

@@ -12,14 +12,14 @@ import cv2
 import numpy as np
 import pytest
 
-from nrmlc.benchmark import parse_seeds
+from nrmlc.workbench.benchmark import parse_seeds
 from nrmlc.cli import main
-from nrmlc.compare import compare
+from nrmlc.workbench.compare import compare
 from nrmlc.data import open_sequence, read_box_file
 from nrmlc.testing.scenes import write_small_suite
 from nrmlc.data.video_file import VideoFileSequence
 from nrmlc.errors import DataError, ParameterError
-from nrmlc.metrics import evaluate, overlaps
+from nrmlc.workbench.metrics import evaluate, overlaps
 
 FAST = ["--param", "n_particles=50", "--param", "n_positive=10", "--param", "n_negative=20",
         "--param", "max_positive=20"]
@@ -301,7 +301,7 @@ def test_evaluate_compares_folders_with_plots(data_root, two_trackers, tmp_path,
     assert "2/2" in nrmlc_row and "1/2" in other_row
     assert f"no result file for {names[1]}" in err and "7 lines for 10 frames" in err
 
-    # The numbers are the OTB averages over sequences of nrmlc.metrics' per-sequence scores.
+    # The numbers are the OTB averages over sequences of nrmlc.workbench.metrics' per-sequence scores.
     truths = [open_sequence(data_root / n).groundtruth for n in names]
     mine = [evaluate(read_box_file(nrmlc_folder / f"{n}.txt"), t) for n, t in zip(names, truths)]
     theirs = [evaluate(read_box_file(other / f"{names[0]}.txt"), truths[0]), evaluate(np.empty((0, 4)), truths[1])]

@@ -19,7 +19,7 @@ Conventions (OTB):
 Result files (``read_box_file(path, predictions=True)``) are read with the
 same syntax, but a row that is infinite, beyond ``MAX_COORDINATE`` or of
 non-positive size is kept as it is: it is a failed prediction, which
-:func:`nrmlc.metrics.evaluate` scores as a failure, not a broken file.
+:func:`nrmlc.workbench.metrics.evaluate` scores as a failure, not a broken file.
 """
 from __future__ import annotations
 

@@ -251,7 +251,7 @@ def experts_output(boxes: np.ndarray, errors: np.ndarray, chosen: int, recognise
     """What the pair reports on a frame (``second_expert``): the chosen expert's box, or the two's
     blend where they agree (:func:`blend_experts`); where neither expert's eps_pos* is under
     ``unrecognised_gate``, with its size moved toward the last recognised output's (:func:`held_size`).
-    The tracker and its offline rebuild (``experiments/expert_choice.py``) both report through it.
+    The tracker and its offline rebuild (``experiments/development/expert_choice.py``) both report through it.
 
     Parameters
     ----------

@@ -10,10 +10,10 @@ Examples
 --------
 ::
 
-    python -m experiments.devset --seeds 0-4
-    python -m experiments.devset --seeds 0-2 --param propagation=best
-    python -m experiments.devset --param alpha=10 --baseline-param alpha=2.5 --no-peers
-    python -m experiments.devset --preset paper --baseline-preset default
+    python -m experiments.development.devset --seeds 0-4
+    python -m experiments.development.devset --seeds 0-2 --param propagation=best
+    python -m experiments.development.devset --param alpha=10 --baseline-param alpha=2.5 --no-peers
+    python -m experiments.development.devset --preset paper --baseline-preset default
 
 It prints, per sequence, the mean overlap (over seeds) of the configuration, the
 baseline and each OpenCV tracker (MIL; KCF and CSRT with opencv-contrib), and the
@@ -38,11 +38,11 @@ from nrmlc import io
 from nrmlc.config import data_root_from_env
 from nrmlc.data.synthetic import SyntheticSequence
 from nrmlc.errors import NrmlcError
-from nrmlc.benchmark import parse_seeds
-from nrmlc.runner import DEFAULT_CACHE, RunCache
+from nrmlc.workbench.benchmark import parse_seeds
+from nrmlc.workbench.runner import DEFAULT_CACHE, RunCache
 from nrmlc.tracker.params import TrackerParams, parse_param_assignment
 
-REPO_ROOT = Path(__file__).resolve().parents[1]
+REPO_ROOT = Path(__file__).resolve().parents[2]
 
 #: Where the 12 first development targets are (the shared data root).
 DEFAULT_DATA = REPO_ROOT.parent / "shared" / "data" / "sequences"
@@ -246,7 +246,7 @@ def early_losses(measures: dict, names, share: float = EARLY_SHARE) -> list[str]
 
 def attribute_means(columns: dict, names, attributes: dict) -> dict:
     """{attribute code: {column: mean over the targets of ``names`` that have it}, plus "n"}."""
-    from nrmlc.attributes import ATTRIBUTES
+    from nrmlc.workbench.attributes import ATTRIBUTES
 
     table = {}
     for code, _ in ATTRIBUTES:
@@ -431,8 +431,8 @@ def format_table(groups: dict, columns: dict) -> str:
 def lineage_measures(folder, sequences, trackers=LINEAGE_TRACKERS) -> tuple[dict, dict, dict, list]:
     """({tracker: {sequence name: mean overlap}}, {tracker: {sequence name: :func:`tracked_scale`}},
     {tracker: {sequence name: :func:`frame_edge_share`}}) of the OTB benchmark's own result files in
-    ``folder`` (:mod:`nrmlc.otb_results`), scored like NRMLC, and the notes of files not used."""
-    from nrmlc.otb_results import otb_result_boxes
+    ``folder`` (:mod:`nrmlc.workbench.otb_results`), scored like NRMLC, and the notes of files not used."""
+    from nrmlc.workbench.otb_results import otb_result_boxes
 
     measures: tuple = ({}, {}, {})
     notes: list = []
@@ -579,7 +579,7 @@ def main(argv=None) -> int:
                           "peers_collapsed": peer_collapses(peer_scales, names, peer_edges)}
                   for label, names in groups.items() if label != "synthetic suite"}
         if attribute_folder is not None:
-            from nrmlc.attributes import read_attributes
+            from nrmlc.workbench.attributes import read_attributes
 
             attributes, _ = read_attributes(attribute_folder, [s.name for s in real])
             attribute_table = attribute_means(columns, [s.name for s in real], attributes)

@@ -1,7 +1,7 @@
 """Speed beside accuracy (``nrmlc evaluate ... --speed-plot OUT.png``): success AUC against fps.
 
 The fps of a tracker is what its results record, over the scored sequences that record it
-(:attr:`nrmlc.compare.TrackerScores.fps`: total frames over total time): the ``fps`` of the OTB
+(:attr:`nrmlc.workbench.compare.TrackerScores.fps`: total frames over total time): the ``fps`` of the OTB
 toolkit's ``.mat`` files (measured by each tracker's authors, on their machines) or the
 ``fps`` of each run in a ``nrmlc benchmark`` folder's ``benchmark.json``. Plain ``<Seq>.txt``
 folders record none: such a tracker is left out of the plot, with a note.

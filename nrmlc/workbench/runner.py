@@ -89,7 +89,7 @@ _DAMAGED = (zipfile.BadZipFile, OSError, ValueError, EOFError, KeyError)
 def code_version() -> str:
     """Hash of every source file that can change a tracking result, as :func:`executable_text`
     gives it: a comment or docstring edited leaves the version, and the run cache, as they were."""
-    root = Path(__file__).resolve().parent
+    root = Path(__file__).resolve().parents[1]
     digest = hashlib.sha256()
     for name in _RESULT_SOURCES:
         path = root / name
@@ -178,7 +178,7 @@ def frames_tracked(sequence, n_frames: int | None) -> int:
 
 #: Tracker switches added after runs were cached, with their off value. A run's key leaves such a
 #: switch out while it is off, so the runs cached before it existed keep their keys and
-#: ``experiments.screen --baseline-version`` can pair a new switch with them (round 19 used it
+#: ``experiments.development.screen --baseline-version`` can pair a new switch with them (round 19 used it
 #: for its five switches, then removed them; round 20 for ``translation_floor``, whose 0 is the
 #: ``paper`` preset's and the default's before round 20; round 51 for the weak-trigger search's
 #: three fields, whose off values are the ``paper`` preset's and the default's before round 51; rounds
@@ -385,7 +385,7 @@ def kernels_cached() -> bool:
     import re
 
     decorated = re.compile(r"^\s*@(numba\.)?njit", re.MULTILINE)
-    root = Path(__file__).resolve().parent
+    root = Path(__file__).resolve().parents[1]
     for source in root.rglob("*.py"):
         if not decorated.search(source.read_text(errors="replace")):
             continue
@@ -425,8 +425,8 @@ def check_numba_target() -> None:
     if _target_problem is None:
         # the child imports this very package, whatever the current folder or installed copy
         env = dict(os.environ, PYTHONPATH=os.pathsep.join(
-            [str(Path(__file__).resolve().parents[1])] + [p for p in [os.environ.get("PYTHONPATH")] if p]))
-        child = subprocess.run([sys.executable, "-c", "from nrmlc.runner import warm_up; warm_up()"], env=env,
+            [str(Path(__file__).resolve().parents[2])] + [p for p in [os.environ.get("PYTHONPATH")] if p]))
+        child = subprocess.run([sys.executable, "-c", "from nrmlc.workbench.runner import warm_up; warm_up()"], env=env,
                                capture_output=True, text=True)
         if child.returncode < 0:
             _target_problem = f"died with {signal.Signals(-child.returncode).name}"

@@ -29,7 +29,7 @@ Frames
     frame ``startFrame - annoBegin + k`` of a sequence read from the benchmark's folder with its
     annotation (e.g. Tiger1: ``startFrame`` 6, ``annoBegin`` 1, so the boxes start at frame 6).
     Frames the file does not cover (before its first row, after its last) are missing
-    predictions, scored as failures like every missing prediction in :mod:`nrmlc.metrics`.
+    predictions, scored as failures like every missing prediction in :mod:`nrmlc.workbench.metrics`.
     Where the toolkit differs: it replaces a ``rect`` row that is NaN or of non-positive size
     by the previous row before scoring (TLD's lost frames); here such a row stays a failed
     frame, as in every result this package scores.
@@ -38,7 +38,7 @@ Which file is a sequence's
     ``<Seq>`` is matched without regard to case and to the benchmark's spellings of a target
     number (:func:`sequence_key`): ``Skating2.1``, ``Skating2_1`` and ``Skating2-1`` are one
     sequence, ``dudek`` is ``Dudek``. The first box must be the sequence's box on the file's
-    first frame (IoU >= 0.5, as :func:`nrmlc.compare.find_result`), else the file is not used:
+    first frame (IoU >= 0.5, as :func:`nrmlc.workbench.compare.find_result`), else the file is not used:
     results on another version of the sequence. Two files of one tracker that name the same
     sequence (``car4_X.mat``, ``Car4_X.mat``) are refused.
 """
@@ -383,7 +383,7 @@ def find_otb_result(folder, tracker: str, sequence, max_frames: int | None = Non
     max_frames : int, optional
         Only the first frames (the array is cut to them).
     name_map : dict, optional
-        {file stem (lower case): sequence name (lower case)}, as :func:`nrmlc.compare.parse_name_map`.
+        {file stem (lower case): sequence name (lower case)}, as :func:`nrmlc.workbench.compare.parse_name_map`.
 
     Returns
     -------
@@ -396,7 +396,7 @@ def find_otb_result(folder, tracker: str, sequence, max_frames: int | None = Non
         Files not used and why; frames the file does not cover.
     """
     from nrmlc.geometry import usable_boxes
-    from nrmlc.metrics import first_box_mismatch
+    from nrmlc.workbench.metrics import first_box_mismatch
 
     n_sequence = len(sequence)
     n_frames = n_sequence if max_frames is None else min(n_sequence, max_frames)
@@ -446,7 +446,7 @@ def otb_result_boxes(folder, tracker: str, sequence, max_frames: int | None = No
     """A tracker's boxes on a sequence from a folder of OTB result files, aligned to its frames.
 
     For experiments: ``boxes, fps, notes = otb_result_boxes(OTB_DIR, "ASLA", open_sequence(...))``,
-    then ``nrmlc.metrics.evaluate(boxes, sequence.groundtruth)``.
+    then ``nrmlc.workbench.metrics.evaluate(boxes, sequence.groundtruth)``.
 
     Parameters
     ----------

@@ -30,8 +30,8 @@ from experiments.shared import blocks
 from experiments.tables import fmt, mean_std, save_figure, write_csv
 from nrmlc import io
 from nrmlc.geometry import usable_boxes
-from nrmlc.metrics import overlaps
-from nrmlc.runner import TrackerJob
+from nrmlc.workbench.metrics import overlaps
+from nrmlc.workbench.runner import TrackerJob
 from nrmlc.tracker.algorithm import NRMLCTracker
 from nrmlc.tracker.loop import track_sequence
 
@@ -80,7 +80,7 @@ class OracleGateTracker(NRMLCTracker):
 
 @dataclass(frozen=True)
 class OracleGateRun(TrackerJob):
-    """One run of :class:`OracleGateTracker`: a job of :class:`nrmlc.runner.RunCache`, stored under
+    """One run of :class:`OracleGateTracker`: a job of :class:`nrmlc.workbench.runner.RunCache`, stored under
     ``<cache>/oracle_gate/``."""
 
     gate: str

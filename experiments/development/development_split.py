@@ -18,9 +18,9 @@ Among ``--draws`` random splits obeying the last two (seeded), it keeps the one 
 smallest cost: the difference of the halves' mean difficulty in units of its spread,
 plus the attribute counts' differences over the number of targets.
 
-``python -m experiments.development_split --peers PEERS.json --attributes DIR``, where
+``python -m experiments.development.development_split --peers PEERS.json --attributes DIR``, where
 ``PEERS.json`` maps each OpenCV tracker to ``{target: mean overlap}`` (what
-``experiments.devset --json`` writes under ``columns``).
+``experiments.development.devset --json`` writes under ``columns``).
 """
 from __future__ import annotations
 
@@ -31,8 +31,8 @@ from pathlib import Path
 
 import numpy as np
 
-from nrmlc.attributes import ATTRIBUTES as OTB_ATTRIBUTES
-from nrmlc.attributes import read_attributes as read_attribute_sets
+from nrmlc.workbench.attributes import ATTRIBUTES as OTB_ATTRIBUTES
+from nrmlc.workbench.attributes import read_attributes as read_attribute_sets
 
 #: The first 12 development targets (those of ``../shared/data/sequences``).
 FIRST_TARGETS = ("Basketball", "Car1", "Car11", "Couple", "Crossing", "Dog", "Football1", "Girl",
@@ -46,7 +46,7 @@ ATTRIBUTES = tuple(code for code, _ in OTB_ATTRIBUTES)
 
 
 def read_attributes(folder: Path, targets) -> np.ndarray:
-    """(n_targets, 11) 0/1 flags (:func:`nrmlc.attributes.read_attributes`); a target without a
+    """(n_targets, 11) 0/1 flags (:func:`nrmlc.workbench.attributes.read_attributes`); a target without a
     file (Car11, not an OTB-100 sequence) gets zeros."""
     found, _ = read_attribute_sets(folder, list(targets))
     return np.array([[code in found.get(t, ()) for code in ATTRIBUTES] for t in targets], dtype=np.float64)

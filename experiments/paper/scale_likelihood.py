@@ -1,6 +1,6 @@
 """The likelihood across scale at the ground truth's centre: why boxes drift in scale.
 
-The failure measures (:mod:`experiments.failure_mechanisms`) find boxes that end far from
+The failure measures (:mod:`experiments.paper.failure_mechanisms`) find boxes that end far from
 the target's size (Occlusion2 at a fifth of the face's area, Basketball, MotorRolling).
 This script asks the likelihood itself. While the default tracker runs (seed 0), at every
 annotated frame and before that frame's update, the ground-truth box is coded at
@@ -9,7 +9,7 @@ candidates are coded on. Per candidate the margin ``m = eps_neg - eps_pos`` is t
 confidence over alpha (``log h = alpha m``), so ``m(s) - m(1)`` says by how much the
 likelihood prefers the box scaled by ``s`` to the true one (in units of 1/alpha of log
 weight). Frames are counted while the tracker holds the target (IoU >= ``ON_TARGET_IOU`` of
-:mod:`experiments.failure_mechanisms`), the first
+:mod:`experiments.paper.failure_mechanisms`), the first
 :data:`EARLY_FRAMES` frames apart from the rest, because the positives are then still the
 first frame's. The probing never changes the tracker's boxes (tested).
 """
@@ -24,7 +24,7 @@ import numpy as np
 from experiments.grid import describe_params, json_report, script_entry
 from experiments.shared import ON_TARGET_IOU, blocks
 from experiments.tables import save_figure
-from nrmlc.runner import TrackerJob, frames_tracked
+from nrmlc.workbench.runner import TrackerJob, frames_tracked
 
 STEM = "scale_likelihood"
 TITLE = "Scale drift: the likelihood across scale at the ground truth's centre"
@@ -45,7 +45,7 @@ PROFILE_VERSION = 1
 class ScaleProfile(TrackerJob):
     """Track a sequence and, at each annotated frame, code the ground truth at :data:`SCALES`.
 
-    A job of :class:`nrmlc.runner.RunCache` (stored under ``<cache>/analysis/``), keyed by
+    A job of :class:`nrmlc.workbench.runner.RunCache` (stored under ``<cache>/analysis/``), keyed by
     the sequence, the parameters, the seed, the frame cap, the profile version and the
     code version.
     """
@@ -124,7 +124,7 @@ def profile_measures(profile: dict, groundtruth: np.ndarray) -> dict:
         ``smaller``/``truth``/``larger`` those shares summed; and
         ``tracked_scale``, the median over the counted frames of sqrt(box area / truth area).
     """
-    from nrmlc.metrics import overlaps
+    from nrmlc.workbench.metrics import overlaps
 
     frames = np.asarray(profile["frames"], dtype=np.int64)
     margin = np.asarray(profile["error_negative"]) - np.asarray(profile["error_positive"])

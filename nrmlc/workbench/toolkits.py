@@ -7,7 +7,7 @@ frame and ``update(image) -> box`` on the others. :class:`NRMLCGot10k` is that
 subclass around :class:`~nrmlc.NRMLCTracker` (which takes PIL images as they come)::
 
     from got10k.experiments import ExperimentOTB
-    from nrmlc.toolkits import NRMLCGot10k
+    from nrmlc.workbench.toolkits import NRMLCGot10k
 
     experiment = ExperimentOTB("data/OTB", version=2015, result_dir="results", report_dir="reports")
     experiment.run(NRMLCGot10k(seed=0))          # results/OTB2015/NRMLC/<Seq>.txt

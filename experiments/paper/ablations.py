@@ -31,7 +31,7 @@ Families, each against the default tracker (the first row of each):
 
 Each configuration runs on the paper's given sequences with the ablation seeds.
 These runs are scored on the ground truth of Tables I/II, so they report; no
-default is chosen on them (defaults come from ``experiments.devset``).
+default is chosen on them (defaults come from ``experiments.development.devset``).
 Reported per configuration: mean overlap and CLE (mean ± std over seeds of the
 across-sequence average), the share of negative entries among all
 candidates' coefficients c and dictionary weights w (``negative_share_c`` /

@@ -29,7 +29,7 @@ from experiments.grid import params_differences, score, script_entry
 from experiments.sequence_sets import paper_name
 from experiments.tables import fmt, mean_std, save_figure, write_csv
 from nrmlc import io
-from nrmlc.metrics import PRECISION_THRESHOLDS, SUCCESS_THRESHOLDS
+from nrmlc.workbench.metrics import PRECISION_THRESHOLDS, SUCCESS_THRESHOLDS
 from nrmlc.tracker.params import TrackerParams
 
 STEM = "table1_table2_accuracy"

@@ -98,7 +98,7 @@ from experiments.shared import LOST_IOU, LOST_RUN, ON_TARGET_IOU, blocks, lock_l
 from experiments.tables import fmt, mean_std, save_figure, write_csv
 from nrmlc import io
 from nrmlc.geometry import usable_boxes
-from nrmlc.metrics import overlaps as overlaps_of
+from nrmlc.workbench.metrics import overlaps as overlaps_of
 from nrmlc.tracker.redetect import REDETECT_TRIGGER
 
 STEM = "failure_mechanisms"

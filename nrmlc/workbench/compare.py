@@ -21,9 +21,9 @@ Finding a sequence's file in a folder
 
 Other result layouts
     A folder of the OTB toolkit's own ``<Seq>_<Tracker>.mat`` files (and no ``.txt``) is one
-    tracker per ``<Tracker>`` (:mod:`nrmlc.otb_results`); ``DIR:A,B`` or ``--otb-trackers A,B``
+    tracker per ``<Tracker>`` (:mod:`nrmlc.workbench.otb_results`); ``DIR:A,B`` or ``--otb-trackers A,B``
     selects some. Sequence names match without regard to case and to the benchmark's spellings
-    of a target number (``Skating2.1`` is ``Skating2-1``, :func:`nrmlc.otb_results.sequence_key`);
+    of a target number (``Skating2.1`` is ``Skating2-1``, :func:`nrmlc.workbench.otb_results.sequence_key`);
     two files of one folder level that name the same sequence (``car4.txt``, ``Car4.txt``) are
     refused.
 
@@ -34,8 +34,8 @@ What is scored
     (the smallest cap). The first line of the table says what was scored.
 
 Missing predictions
-    Scored by :func:`nrmlc.metrics.evaluate` (see the docstring of
-    :mod:`nrmlc.metrics` for every convention): a frame whose predicted row is
+    Scored by :func:`nrmlc.workbench.metrics.evaluate` (see the docstring of
+    :mod:`nrmlc.workbench.metrics` for every convention): a frame whose predicted row is
     missing (no file for the sequence, fewer lines than frames) or not a
     has no finite box counts as a failed frame, the same way in the success
     and the precision curves (see :data:`MISSING_RULE`).
@@ -63,11 +63,11 @@ import numpy as np
 
 from nrmlc import io
 from nrmlc.errors import DataError, ParameterError
-from nrmlc.otb_results import find_otb_result, is_otb_results_folder, select_trackers, sequence_key
-from nrmlc.results_layout import MANIFEST_NAME, SEEDS_FOLDER, parse_names, select_sequences
+from nrmlc.workbench.otb_results import find_otb_result, is_otb_results_folder, select_trackers, sequence_key
+from nrmlc.workbench.results_layout import MANIFEST_NAME, SEEDS_FOLDER, parse_names, select_sequences
 
 #: How a missing prediction is scored, for ``--help`` and the table's footnote;
-#: it restates the "Missing predictions" paragraph of :mod:`nrmlc.metrics`.
+#: it restates the "Missing predictions" paragraph of :mod:`nrmlc.workbench.metrics`.
 MISSING_RULE = (
     "A scored frame without a prediction (no result file for the sequence, fewer lines than frames, a NaN "
     "or 0,0,0,0 row, an infinite value or one beyond 1e9 px) is a failed frame: overlap 0 and centre "
@@ -75,7 +75,7 @@ MISSING_RULE = (
     "precision@20 and the mean overlap alike. The mean CLE can only average frames that have a box, so "
     "the table gives the count of missing frames beside it. A finite box of zero or negative size is "
     "scored as it is (overlap 0, the error of its centre). Frame 1 (the given box) and frames without "
-    "ground truth are not scored (nrmlc.metrics).")
+    "ground truth are not scored (nrmlc.workbench.metrics).")
 
 
 SCORE_NAMES = ("success_auc", "precision_20", "mean_overlap", "mean_center_error")
@@ -94,7 +94,7 @@ class TrackerScores:
     name : str
     folder : Path
     files : dict of sequence name -> Path or None (no usable file)
-    evaluations : dict of sequence name -> nrmlc.metrics.Evaluation
+    evaluations : dict of sequence name -> nrmlc.workbench.metrics.Evaluation
         Every compared sequence has one; a sequence without a file is all failures.
     seed_runs : list of dict
         With ``all_seeds``: one ``evaluations``-like dict per scored seed
@@ -149,7 +149,7 @@ class TrackerScores:
 
     def summary(self) -> dict:
         """Overall scores (means over seeds and sequences) and coverage counts."""
-        from nrmlc.metrics import PRECISION_AT, PRECISION_THRESHOLDS
+        from nrmlc.workbench.metrics import PRECISION_AT, PRECISION_THRESHOLDS
 
         evaluations = [e for run in self.runs for e in run.values()]
         cle = [e.mean_center_error for e in evaluations if not math.isnan(e.mean_center_error)]
@@ -254,7 +254,7 @@ def find_result(folder, sequence, name_map=None, max_frames: int | None = None):
     """
     from nrmlc.data import read_box_file
     from nrmlc.geometry import usable_boxes
-    from nrmlc.metrics import first_box_mismatch
+    from nrmlc.workbench.metrics import first_box_mismatch
 
     folder = Path(folder)
     n_frames = len(sequence) if max_frames is None else min(len(sequence), max_frames)
@@ -408,7 +408,7 @@ def compare(result_folders, data_root, names=None, sequences=None, name_map=None
     -------
     Comparison
     """
-    from nrmlc.metrics import evaluate
+    from nrmlc.workbench.metrics import evaluate
 
     if not list(result_folders):
         raise ParameterError("--results: give at least one result folder")
@@ -651,7 +651,7 @@ def plot_comparison(comparison: Comparison, path, title: str = "") -> Path:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from nrmlc.metrics import PRECISION_AT, PRECISION_THRESHOLDS, SUCCESS_THRESHOLDS
+    from nrmlc.workbench.metrics import PRECISION_AT, PRECISION_THRESHOLDS, SUCCESS_THRESHOLDS
 
     styles = ["-", "--", "-.", ":"]
     figure, (left, right) = plt.subplots(1, 2, figsize=(11, 4.4))
@@ -835,7 +835,7 @@ def _file_boxes(path) -> np.ndarray:
 
     if Path(path).suffix.lower() != ".mat":
         return read_box_file(path, predictions=True)
-    from nrmlc.otb_results import read_otb_result
+    from nrmlc.workbench.otb_results import read_otb_result
 
     result = read_otb_result(path)
     boxes = result.boxes[max(0, -result.offset):]
@@ -849,7 +849,7 @@ def _file_boxes(path) -> np.ndarray:
 def run_evaluate_file(args: EvaluateOptions) -> int:
     """``evaluate --results R.txt|R.mat --groundtruth G.txt``: the scores, each with the frames behind it."""
     from nrmlc.data import read_box_file
-    from nrmlc.metrics import evaluate
+    from nrmlc.workbench.metrics import evaluate
 
     if args.groundtruth is None or len(args.results) != 1:
         raise ParameterError("evaluate: give one --results R.txt with --groundtruth G.txt, "
@@ -922,7 +922,7 @@ def run_evaluate_folders(args: EvaluateOptions) -> int:
                          skip_first=not args.include_first, all_seeds=args.all_seeds, otb_trackers=otb_trackers)
     scores, notes = [], []
     if args.attributes:
-        from nrmlc.attributes import attribute_scores, read_attributes
+        from nrmlc.workbench.attributes import attribute_scores, read_attributes
 
         attributes, notes = read_attributes(args.attributes, comparison.sequences)
         scores = attribute_scores(comparison, attributes)
@@ -937,24 +937,24 @@ def run_evaluate_folders(args: EvaluateOptions) -> int:
     else:
         print(format_table(comparison))
         if args.attributes:
-            from nrmlc.attributes import format_attribute_table
+            from nrmlc.workbench.attributes import format_attribute_table
 
             print()
             print(format_attribute_table(comparison, scores))
     if args.csv:
-        from nrmlc.attributes import attribute_csv_rows
+        from nrmlc.workbench.attributes import attribute_csv_rows
 
         write_csv(comparison, args.csv, attribute_csv_rows(scores))
     if args.plot:
         plot_comparison(comparison, args.plot)
         print(f"plots: {args.plot}", file=sys.stderr)
     if args.attribute_plot:
-        from nrmlc.attributes import plot_attributes
+        from nrmlc.workbench.attributes import plot_attributes
 
         plot_attributes(comparison, scores, args.attribute_plot)
         print(f"attribute plot: {args.attribute_plot}", file=sys.stderr)
     if args.speed_plot:
-        from nrmlc.speed import plot_speed
+        from nrmlc.workbench.speed import plot_speed
 
         _, left_out = plot_speed(comparison, args.speed_plot)
         for note in left_out:

@@ -7,7 +7,7 @@ length 1024 has mean 1'x/1024 <= sqrt(1024) ||x|| / 1024 = 1/32 = 0.03125
 (equality for a constant patch), so no such vector can have mean 0.3: the paper's negative
 templates cannot have been normalised like the rest, or the axis is mislabelled.
 
-Data: the same recorded frames as :mod:`experiments.stats_nonnegativity`
+Data: the same recorded frames as :mod:`experiments.paper.stats_nonnegativity`
 (tracker seed 0, default parameters, sampled frames; cached).
 """
 from __future__ import annotations
@@ -35,7 +35,7 @@ def _summary(values: np.ndarray) -> dict:
 
 
 def runs(context) -> list:
-    """The recorded internals this script reads: those of :mod:`experiments.stats_nonnegativity`."""
+    """The recorded internals this script reads: those of :mod:`experiments.paper.stats_nonnegativity`."""
     return stats_runs(context)
 
 

@@ -1,12 +1,12 @@
 """Screen many configurations against one baseline on both development halves at once.
 
-``python -m experiments.screen --seeds 0-2 --synthetic 6 --variant NAME PARAM=VALUE[,PARAM=VALUE...] ...``
+``python -m experiments.development.screen --seeds 0-2 --synthetic 6 --variant NAME PARAM=VALUE[,PARAM=VALUE...] ...``
 
 The baseline's runs, then each variant's, go through the run cache (longest run first within
 each, so both cores stay busy; a rerun computes only what is missing). For each variant
-it prints the paired difference to the baseline (:func:`experiments.devset.paired_difference`)
+it prints the paired difference to the baseline (:func:`experiments.development.devset.paired_difference`)
 on half A, half B and the synthetic suite, and the adoption rule's verdict
-(:func:`experiments.devset.adopted`); ``--json`` writes the same with every run's overlap,
+(:func:`experiments.development.devset.adopted`); ``--json`` writes the same with every run's overlap,
 ``--markdown`` the table.
 
 ``--baseline-version V`` pairs the variants with the baseline's runs stored at another code
@@ -28,14 +28,14 @@ from pathlib import Path
 
 import numpy as np
 
-from experiments.devset import (adopted, collapsed, development_sequences, differences_by_group, groups_of,
+from experiments.development.devset import (adopted, collapsed, development_sequences, differences_by_group, groups_of,
                                 overlaps_of, parse_roots, run_measures, scales_of, selected_names, warn_few_seeds)
 from experiments.grid import specs_for
 from nrmlc import io
-from nrmlc.benchmark import parse_seeds
+from nrmlc.workbench.benchmark import parse_seeds
 from nrmlc.data.synthetic import SyntheticSequence
 from nrmlc.errors import NrmlcError
-from nrmlc.runner import DEFAULT_CACHE, RunCache
+from nrmlc.workbench.runner import DEFAULT_CACHE, RunCache
 from nrmlc.tracker.params import TrackerParams, parse_param_assignment
 
 
@@ -92,7 +92,7 @@ def baseline_at_version(cache: RunCache, specs: list, version: str, jobs) -> lis
 
 
 def screen_groups(sequences) -> dict:
-    """:func:`experiments.devset.groups_of` with the real targets of all groups together as
+    """:func:`experiments.development.devset.groups_of` with the real targets of all groups together as
     ``"all real"`` (when there are any)."""
     groups = groups_of(sequences)
     real = [n for label, names in groups.items() if label != "synthetic suite" for n in names]
@@ -102,7 +102,7 @@ def screen_groups(sequences) -> dict:
 
 
 def collapsed_by_half(scales: dict, groups: dict) -> dict:
-    """{'A': [...], 'B': [...]}: the collapsed targets (:func:`experiments.devset.collapsed`) per half."""
+    """{'A': [...], 'B': [...]}: the collapsed targets (:func:`experiments.development.devset.collapsed`) per half."""
     return {label: collapsed(scales, names) for label, names in groups.items() if label in ("A", "B")}
 
 
@@ -184,7 +184,7 @@ def format_screen(rows: list[dict]) -> str:
 
 def add_target_options(parser: argparse.ArgumentParser) -> None:
     """The options that pick the targets, seeds and frames (``screen``, ``expert_choice``)."""
-    parser.add_argument("--data", default=None, help="data root(s) joined by ':' (as experiments.devset)")
+    parser.add_argument("--data", default=None, help="data root(s) joined by ':' (as experiments.development.devset)")
     parser.add_argument("--seeds", default="0-2", help="seeds, e.g. 0-2 or 0,3,5; a number alone is that one seed")
     parser.add_argument("--synthetic", type=int, default=6, metavar="N")
     parser.add_argument("--half", choices=("A", "B", "all"), default="all")

@@ -8,7 +8,7 @@ checked on the files: Car4 is IV and SV, Deer MB, FM, IPR, BC and LR):
     DEF deformation, MB motion blur, FM fast motion, IPR in-plane rotation, OV out of view,
     BC background clutter, LR low resolution.
 
-A sequence's file is found as its result files are (:func:`nrmlc.otb_results.sequence_key`:
+A sequence's file is found as its result files are (:func:`nrmlc.workbench.otb_results.sequence_key`:
 ``Skating2.1.txt`` is Skating2-1's, ``jogging-1.txt`` Jogging-1's); a two-target sequence
 without a file of its own takes its folder's (``Jogging.txt`` for Jogging-1 and Jogging-2).
 
@@ -29,7 +29,7 @@ import numpy as np
 
 from nrmlc import io
 from nrmlc.errors import DataError
-from nrmlc.otb_results import sequence_key
+from nrmlc.workbench.otb_results import sequence_key
 
 #: (code, name) in the order of the flags in the benchmark's attribute files.
 ATTRIBUTES = (
@@ -137,14 +137,14 @@ def attribute_scores(comparison, attributes: dict) -> list[AttributeScores]:
 
     Parameters
     ----------
-    comparison : nrmlc.compare.Comparison
+    comparison : nrmlc.workbench.compare.Comparison
     attributes : dict of sequence name -> set of codes (:func:`read_attributes`)
 
     Returns
     -------
     list of AttributeScores, in the order of :data:`ATTRIBUTES`
     """
-    from nrmlc.metrics import PRECISION_AT, PRECISION_THRESHOLDS
+    from nrmlc.workbench.metrics import PRECISION_AT, PRECISION_THRESHOLDS
 
     at = int(np.flatnonzero(PRECISION_THRESHOLDS == PRECISION_AT)[0])
     scores = []
@@ -182,7 +182,7 @@ def format_attribute_table(comparison, scores: list[AttributeScores]) -> str:
 
 
 def attribute_csv_rows(scores: list[AttributeScores]) -> list[dict]:
-    """Rows for :func:`nrmlc.compare.write_csv`: sequence ``ALL``, ``attribute`` and ``sequences`` set."""
+    """Rows for :func:`nrmlc.workbench.compare.write_csv`: sequence ``ALL``, ``attribute`` and ``sequences`` set."""
     rows = []
     for entry in scores:
         for tracker, auc in entry.success_auc.items():

@@ -1,8 +1,8 @@
 """Offline: two configurations' runs side by side, the output on each frame chosen by eps_pos*.
 
-``python -m experiments.expert_choice --seeds 335-344 --partner update_interval=1 [--memory 0.95] [--blend-iou 0.5]
+``python -m experiments.development.expert_choice --seeds 335-344 --partner update_interval=1 [--memory 0.95] [--blend-iou 0.5]
 [--held-share 0.7] [--unrecognised-gate 0.15]``
-``python -m experiments.expert_choice --seeds 370-374 --own second_expert=off
+``python -m experiments.development.expert_choice --seeds 370-374 --own second_expert=off
 --partner second_expert=off,update_interval=1``
 
 For every development target and seed, the default's run and a partner configuration's run (from
@@ -16,7 +16,7 @@ default's elsewhere; where the two boxes overlap at IoU >= ``--blend-iou`` (the 
 output's (the default's ``unrecognised_size_share``, 0.7 since round 77; 0: never;
 :func:`nrmlc.tracker.algorithm.held_size`). The choice is causal and changes neither run, so
 it measures, before anything is built, what a second expert beside the tracker would give
-(rounds 63 and 64, docs/findings/round-63-a-second-expert.md). It prints, as ``experiments.screen`` does, the paired
+(rounds 63 and 64, docs/findings/round-63-a-second-expert.md). It prints, as ``experiments.development.screen`` does, the paired
 difference to the default on half A, half B and the synthetic suite with the adoption rule's
 verdict, for the partner alone and for the choice. It chooses nothing by itself: a second expert
 is judged by a screen of the tracker at seeds the study did not use.
@@ -40,12 +40,12 @@ import sys
 
 import numpy as np
 
-from experiments.devset import overlaps_of, run_measures, scales_of
+from experiments.development.devset import overlaps_of, run_measures, scales_of
 from experiments.grid import specs_for
-from experiments.screen import (_report, add_run_options, add_target_options, chosen_targets, parse_variant,
+from experiments.development.screen import (_report, add_run_options, add_target_options, chosen_targets, parse_variant,
                                 screen_document, screen_row)
 from nrmlc.errors import NrmlcError
-from nrmlc.runner import RunCache
+from nrmlc.workbench.runner import RunCache
 from nrmlc.geometry import box_to_state
 from nrmlc.tracker.algorithm import choose_expert, experts_output
 from nrmlc.tracker.loop import TrackResult
