@@ -1,5 +1,6 @@
-"""Every relative link in the README, docs/ and docs/findings/ names a file that exists and, with a
-``#fragment``, a heading of that file (GitHub's anchor rule)."""
+"""Every relative link in the README and every Markdown file under docs/ (the research record
+included) names a file that exists and, with a ``#fragment``, a heading of that file (GitHub's
+anchor rule)."""
 from __future__ import annotations
 
 import re
@@ -8,8 +9,7 @@ from pathlib import Path
 import pytest
 
 ROOT = Path(__file__).resolve().parent.parent
-DOCUMENTS = [ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md")),
-             *sorted((ROOT / "docs" / "findings").glob("*.md"))]
+DOCUMENTS = [ROOT / "README.md", *sorted((ROOT / "docs").rglob("*.md"))]
 LINK = re.compile(r"\]\(([^)\s]+)\)")
 
 
@@ -37,7 +37,7 @@ def test_anchor_rule():
     assert anchor("How far 0.70 is on the paper's nine") == "how-far-070-is-on-the-papers-nine"
 
 
-@pytest.mark.parametrize("document", DOCUMENTS, ids=lambda p: p.name)
+@pytest.mark.parametrize("document", DOCUMENTS, ids=lambda p: str(p.relative_to(ROOT)))
 def test_relative_links_resolve(document):
     broken = []
     for target in LINK.findall(document.read_text(encoding="utf-8")):
