@@ -50,3 +50,11 @@ def test_relative_links_resolve(document):
         elif fragment and linked.suffix == ".md" and fragment not in anchors(linked):
             broken.append(f"{target}: no such heading")
     assert not broken, f"{document.name}: " + "; ".join(broken)
+
+
+def test_the_development_log_is_the_scripts_output():
+    """docs/research/log.md is generated: `python -m experiments.development.log_table --out docs/research/log.md`."""
+    from experiments.development import log_table
+
+    committed = (ROOT / "docs" / "research" / "log.md").read_text(encoding="utf-8")
+    assert committed == log_table.table(), "regenerate: python -m experiments.development.log_table --out docs/research/log.md"
