@@ -19,11 +19,11 @@ from pathlib import Path
 def _cmd_evaluate(args: argparse.Namespace) -> int:
     import dataclasses
 
-    from nrmlc.workbench.compare import EvaluateOptions, run_evaluate_file, run_evaluate_folders
+    from nrmlc.workbench.evaluate_cli import EvaluateOptions, run_evaluate_file, run_evaluate_folders
 
     options = EvaluateOptions(**{f.name: (tuple(getattr(args, f.name)) if f.name in ("results", "name_map")
                                           else getattr(args, f.name)) for f in dataclasses.fields(EvaluateOptions)})
-    if options.data is not None:  # result folders of any number of trackers (nrmlc/workbench/compare.py)
+    if options.data is not None:  # result folders of any number of trackers (nrmlc/workbench/evaluate_cli.py)
         return run_evaluate_folders(options)
     return run_evaluate_file(options)
 
@@ -80,6 +80,68 @@ def _cmd_synth(args: argparse.Namespace) -> int:
     return 0
 
 
+def _cmd_params(args: argparse.Namespace) -> int:
+    """Print the tracker's parameters as a table grouped by the part of the algorithm each governs."""
+    from nrmlc.errors import NrmlcError
+    from nrmlc.tracker import params as tracker_params
+
+    if not hasattr(tracker_params, "describe_parameters"):
+        raise NrmlcError("this version of nrmlc.tracker.params has no describe_parameters(); "
+                         "the parameters are documented in TrackerParams' docstring")
+    for line in format_parameter_table(tracker_params.describe_parameters(args.preset),
+                                       tracker_params.describe_parameters("default") if args.preset != "default"
+                                       else None, args.preset):
+        print(line)
+    return 0
+
+
+def parameter_value_text(value) -> str:
+    """A parameter's value as ``--param NAME=VALUE`` takes it (``false``, ``2,2,0.01``, ``0.1``)."""
+    if isinstance(value, bool):
+        return str(value).lower()
+    if isinstance(value, float):
+        return f"{value:g}"
+    if isinstance(value, (tuple, list)):
+        return ",".join(parameter_value_text(v) for v in value)
+    return str(value)
+
+
+def format_parameter_table(rows: list[dict], reference: list[dict] | None = None,
+                           preset: str = "default") -> list[str]:
+    """The lines of ``nrmlc params``: one block per group, columns aligned across all blocks.
+
+    Parameters
+    ----------
+    rows : list of dict
+        :func:`nrmlc.tracker.params.describe_parameters`' entries (``name``, ``group``,
+        ``default``, ``range``, ``meaning``), in the order to print within a group.
+    reference : list of dict, optional
+        The 'default' preset's entries: a value that differs from its is marked ``*``.
+    preset : str
+        The preset the values are from, for the header.
+    """
+    reference_values = {row["name"]: row["default"] for row in reference or []}
+    changed = {row["name"] for row in rows
+               if row["name"] in reference_values and reference_values[row["name"]] != row["default"]}
+    value_title = preset
+    cells = [(row["name"], parameter_value_text(row["default"]) + ("*" if row["name"] in changed else ""),
+              str(row["range"]), str(row["meaning"])) for row in rows]
+    widths = [max([len(title)] + [len(cell[i]) for cell in cells])
+              for i, title in enumerate(("name", value_title, "range"))]
+    groups: dict[str, list] = {}
+    for row, cell in zip(rows, cells):
+        groups.setdefault(str(row["group"]), []).append(cell)
+    header = f"  {'name':{widths[0]}}  {value_title:{widths[1]}}  {'range':{widths[2]}}  meaning"
+    lines = [f"Tracker parameters, preset '{preset}' (change one with --param NAME=VALUE):", "", header]
+    for group, group_cells in groups.items():
+        lines += ["", f"{group}:"]
+        lines += [f"  {name:{widths[0]}}  {value:{widths[1]}}  {value_range:{widths[2]}}  {meaning}"
+                  for name, value, value_range, meaning in group_cells]
+    if changed:
+        lines += ["", f"* differs from the 'default' preset ({len(changed)} of {len(rows)} parameters)"]
+    return lines
+
+
 def _add_track(commands) -> None:
     from nrmlc.cli_track import add_track_command
 
@@ -128,10 +190,29 @@ def invoked_name() -> str:
     return "python -m nrmlc" if script in ("__main__.py", "-m", "-c", "") else script
 
 
+class HelpFormatter(argparse.ArgumentDefaultsHelpFormatter):
+    """argparse's help with ``(default: X)`` after every option that has a default worth
+    naming: not None (the help says what happens without it), not a flag's False, not an
+    empty list, and not where the help already names its default."""
+
+    def _get_help_string(self, action: argparse.Action) -> str:
+        text = action.help or ""
+        default = action.default
+        if ("default" in text or default is None or default is False or default is argparse.SUPPRESS
+                or (isinstance(default, list) and not default)):
+            return text
+        return super()._get_help_string(action)
+
+
+#: Appended to the help of every ``--param`` option that does not point there yet.
+PARAMS_POINTER = "names, defaults and ranges: see `nrmlc params`"
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
-        prog=invoked_name(),
-        description="NRMLC visual tracker: track sequences, evaluate results (OTB one-pass evaluation).",
+        prog=invoked_name(), formatter_class=HelpFormatter,
+        description="NRMLC visual tracker: track sequences, evaluate results (OTB one-pass evaluation), "
+                    "benchmark a data root, list the tracker's parameters. 'COMMAND --help' describes each.",
     )
     parser.add_argument("--debug", action="store_true", help="show tracebacks instead of one-line errors")
     commands = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
@@ -144,31 +225,58 @@ def build_parser() -> argparse.ArgumentParser:
     evaluate.add_argument("--groundtruth", metavar="G.txt", help="ground-truth boxes (OTB groundtruth_rect.txt)")
     evaluate.add_argument("--json", action="store_true", help="print the summary as JSON")
     evaluate.add_argument("--include-first", action="store_true", help="also score frame 1 (the given box)")
-    from nrmlc.workbench.compare import add_evaluate_arguments
+    from nrmlc.workbench.evaluate_cli import add_evaluate_arguments
 
     add_evaluate_arguments(evaluate)
     evaluate.set_defaults(run=_cmd_evaluate)
 
-    listing = commands.add_parser("list", help="list the sequences found under a data root")
+    listing = commands.add_parser(
+        "list", help="list the sequences found under a data root",
+        description="List every sequence found under ROOT, one line each: its name, frame count, frame size "
+                    "and how many frames have a ground-truth box. ROOT may be in the OTB layout (a folder per "
+                    "sequence with img/ and groundtruth_rect.txt) or the sparse-tracker pack layout.")
     listing.add_argument("root", help="folder of sequences (OTB or sparse-tracker pack layout)")
     listing.set_defaults(run=_cmd_list)
 
-    synth = commands.add_parser("synth", help="write the synthetic sequences to OTB folders")
+    synth = commands.add_parser(
+        "synth", help="write the synthetic sequences to OTB folders",
+        description="Write the synthetic test suite (the sequences 'make figures' uses without --data) as OTB "
+                    "folders OUT/synth-01, OUT/synth-02, ...: frames as PNG files in img/ and the exact boxes "
+                    "in groundtruth_rect.txt. The same seed gives the same frames. Every check (the folders, "
+                    "memory, free disk) runs before anything is written, and each sequence is written whole "
+                    "or not at all; in OUT, an earlier synthetic sequence of the same length is replaced, anything else "
+                    "is refused.")
     synth.add_argument("--out", required=True, help="output folder")
     synth.add_argument("--frames", type=int, default=120, help="frames per sequence")
     synth.add_argument("--count", type=int, default=3, help="number of sequences")
     synth.add_argument("--seed", type=int, default=0, help="generator seed")
     synth.set_defaults(run=_cmd_synth)
 
+    from nrmlc.tracker.params import PRESETS
+
+    params = commands.add_parser(
+        "params", help="list the tracker's parameters: group, default, range, meaning",
+        description="List every tracker parameter that 'nrmlc track' and 'nrmlc benchmark' accept as --param "
+                    "NAME=VALUE, grouped by the part of the algorithm it governs: its value in the preset, the "
+                    "values it may take, and a one-line meaning. With --preset paper, the paper preset's "
+                    "values, those that differ from the default's marked *.")
+    params.add_argument("--preset", default="default", choices=tuple(PRESETS),
+                        help="show this parameter set's values")
+    params.set_defaults(run=_cmd_params)
+
     for add_command in _EXTRA_COMMANDS:
         add_command(commands)
     for command in commands.choices.values():
+        # Also for the parsers other modules build: every --help names the defaults.
+        command.formatter_class = HelpFormatter
         # Also accepted after the command name; SUPPRESS keeps a top-level --debug from being reset.
         command.add_argument("--debug", action="store_true", default=argparse.SUPPRESS,
                              help="show tracebacks instead of one-line errors")
         for action in command._actions:
             if action.nargs != 0:
                 _VALUE_OPTIONS.update(option for option in action.option_strings if option.startswith("--"))
+            if "--param" in action.option_strings and "nrmlc params" not in (action.help or ""):
+                action.help = f"{action.help}; {PARAMS_POINTER}" if action.help else PARAMS_POINTER
     return parser
 
 

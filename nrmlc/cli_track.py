@@ -20,7 +20,14 @@ _SEQUENCE_FILE = re.compile(r"^(groundtruth_rect(\.\d+)?\.txt|datainfo\.txt|.*_g
 
 
 def add_track_command(commands) -> None:
-    track = commands.add_parser("track", help="track the target of a sequence folder or a video file with NRMLC")
+    track = commands.add_parser(
+        "track", help="track the target of a sequence folder or a video file with NRMLC",
+        description="Track one target through a sequence folder or a video file with NRMLC and write its box "
+                    "in every frame to --out, one x,y,w,h line per frame (OTB convention, 1-based pixels). "
+                    "The first box is the ground truth's first, or --init-box. Where the sequence has ground "
+                    "truth, the closing line gives the mean overlap and centre error. Every output is checked "
+                    "before tracking starts and written only once the run has succeeded; the same seed gives "
+                    "the same boxes for any --threads.")
     track.add_argument("sequence", metavar="SEQ_DIR|VIDEO",
                        help="sequence folder (OTB or sparse-tracker pack layout, or a folder of frames), or a "
                             "video file OpenCV reads (.mp4, .avi, ...; needs --init-box)")
@@ -37,10 +44,11 @@ def add_track_command(commands) -> None:
     track.add_argument("--init-box", metavar="X,Y,W,H",
                        help="initial box (default: the first ground-truth box); may start with a minus sign")
     track.add_argument("--preset", default="default", choices=tuple(PRESETS),
-                       help="parameter set: 'default' (chosen on the development sequences) or 'paper' "
-                            "(the paper as printed); --param and the options above change single values")
+                       help="parameter set (default: 'default', chosen on the development sequences; 'paper': "
+                            "the paper as printed); --param and the options above change single values")
     track.add_argument("--param", action="append", default=[], metavar="NAME=VALUE",
-                       help="any other tracker parameter, e.g. --param occlusion_detection=false (repeatable)")
+                       help="any other tracker parameter, e.g. --param occlusion_detection=false (repeatable; "
+                            "names, defaults and ranges: see `nrmlc params`)")
     track.add_argument("--threads", type=int, help="threads for numba/OpenBLAS/OpenCV (default: all cores)")
     track.add_argument("--video", metavar="OUT.mp4", help="also write the frames with the tracked box drawn "
                        "(.mp4, .m4v, .mov, .avi or .mkv)")
