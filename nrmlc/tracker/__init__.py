@@ -1,11 +1,13 @@
-"""The NRMLC tracker: parameters, the tracker, and whole-sequence runs.
+"""The NRMLC tracker: parameters, the tracker (one expert), the pair of experts, and whole-sequence
+runs. ``make_tracker(params, seed)`` gives the tracker the parameters describe.
 
 Imports are lazy so that ``python -m nrmlc evaluate`` does not load numba.
 """
-__all__ = ["NRMLCTracker", "TrackerParams", "FrameResult", "TrackResult", "track_sequence"]
+__all__ = ["NRMLCTracker", "ExpertPair", "make_tracker", "TrackerParams", "FrameResult", "TrackResult",
+           "track_sequence"]
 
-_WHERE = {"NRMLCTracker": "algorithm", "FrameResult": "algorithm", "TrackerParams": "params",
-          "TrackResult": "loop", "track_sequence": "loop"}
+_WHERE = {"NRMLCTracker": "algorithm", "ExpertPair": "experts", "make_tracker": "experts",
+          "FrameResult": "records", "TrackerParams": "params", "TrackResult": "loop", "track_sequence": "loop"}
 
 
 def __getattr__(name):

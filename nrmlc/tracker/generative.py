@@ -17,21 +17,25 @@ Here the codes are NRMLC's own approximated LLC on the ``k`` nearest atoms
 (:mod:`nrmlc.kernels.local_coding`) in place of SCM's lasso, the k-means runs on the
 l2-normalised local patches (SCM's on the raw ones, normalising the atoms after), and the
 term enters the log confidence as ``weight * log(similarity)``, only on the candidates whose
-code uses a positive template (``NRMLCTracker.encode``): where none does, the target is
-hidden or lost, and a term that still ranks the background would hold the particle cloud
-there instead of letting it spread and search (on the development sequence Jogging-2 it lost
-the jogger behind the pole in 4 of 5 runs; docs/FINDINGS.md, round 13). For speed, the default
-cuts the candidates' local patches every 4 px (49, not 196) and codes only the 20 most confident
-candidates; the atoms still come from the first frame's 2-px grid (round 14).
+code uses a positive template (:class:`GenerativeTerm`, a confidence term of
+:meth:`nrmlc.tracker.algorithm.NRMLCTracker.encode`): where none does, the target is hidden or
+lost, and a term that still ranks the background would hold the particle cloud there instead of
+letting it spread and search. For speed, the candidates' local patches are cut every
+``generative_step`` px (4: 49 patches, not 196) and only the ``generative_candidates`` most
+confident candidates are coded; the atoms still come from the first frame's 2-px grid.
+Evidence: docs/DEVIATIONS.md.
 """
 from __future__ import annotations
 
 import functools
+from dataclasses import dataclass
 
 import numpy as np
 from numpy.lib.stride_tricks import sliding_window_view
 
 from nrmlc.kernels.local_coding import code_local_patches, match_local_histogram
+from nrmlc.tracker.parameter_fields import CheckedParams, bounded
+from nrmlc.tracker.records import NO_POSITIVE_ERROR
 
 #: SCM's values (``demo.m`` and ``updateDic.m`` of huchuanlu/12_1).
 LOCAL_SIZE = 6
@@ -42,6 +46,35 @@ OCCLUDED_BONUS = 3e-5
 FIRST_FRAME_SHARE = 0.95
 MAX_OCCLUDED_SHARE = 0.8
 KMEANS_ITERATIONS = 10
+
+
+@dataclass(frozen=True)
+class GenerativeParams(CheckedParams):
+    """The generative term's parameters (:mod:`nrmlc.tracker.generative`).
+
+    Attributes
+    ----------
+    generative_weight : float
+        log h gains this times log(similarity) (0: no term, the paper).
+    generative_candidates : int
+        Only this many most confident candidates are coded locally (SCM codes all); the others
+        get the lowest of their similarities.
+    generative_neighbours : int
+        The local coder's nearest atoms.
+    generative_lam : float
+        The local coder's ridge (SCM codes with a lasso).
+    generative_interval : int
+        The template histogram is updated every this many frames (SCM's ``demo.m``: 5).
+    generative_step : int
+        The candidates' local patches are cut every this many px (SCM's ``demo.m``: 2).
+    """
+
+    generative_weight: float = bounded(10.0, 0, 1000)
+    generative_candidates: int = bounded(20, 1, 100_000)
+    generative_neighbours: int = bounded(5, 1, N_ATOMS)
+    generative_lam: float = bounded(1.0, 0, 1000, low_open=True)
+    generative_interval: int = bounded(5, 1)
+    generative_step: int = bounded(4, 1, LOCAL_SIZE)
 
 
 @functools.lru_cache(maxsize=8)
@@ -126,3 +159,49 @@ class LocalHistogramModel:
                               + (1 - FIRST_FRAME_SHARE) * self._dense(neighbours, np.abs(codes)))
         else:
             self.histogram = self.first_histogram.copy()
+
+
+class GenerativeTerm:
+    """The generative term as a confidence term of the tracker: made from the first frame's target
+    patch, it adds ``generative_weight * log(similarity)`` to the candidates' log h and updates its
+    template histogram from the estimates.
+
+    Parameters
+    ----------
+    rng : numpy.random.Generator
+        The tracker's generator (seeds the k-means of the atoms).
+    target_patch : (patch_size**2,) float32
+        The first frame's target, as a unit patch vector.
+    params : GenerativeParams
+        With ``patch_size`` (a :class:`nrmlc.tracker.params.TrackerParams`).
+    """
+
+    def __init__(self, rng: np.random.Generator, target_patch: np.ndarray, params) -> None:
+        self.params = params
+        self.model = LocalHistogramModel(rng, target_patch, params.patch_size, params.generative_neighbours,
+                                         params.generative_lam, params.generative_step)
+
+    def add_to(self, candidates: np.ndarray, log_confidence: np.ndarray,
+               error_positive: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The candidates' similarity (n,) and their log h (n,) with the term added.
+
+        The term counts only where the positives take part in the code (eps_pos below
+        :data:`NO_POSITIVE_ERROR`); elsewhere a candidate gets the lowest term of those, so that a
+        flat discriminative likelihood (the target hidden or lost) lets the cloud spread.
+        """
+        top = np.argsort(-log_confidence, kind="stable")[:self.params.generative_candidates]
+        local = self.model.similarity(candidates[top])["similarity"]
+        similarity = np.full(len(candidates), local.min())
+        similarity[top] = local
+        term = self.params.generative_weight * np.log(np.maximum(similarity, 1e-300))
+        recognised = error_positive < NO_POSITIVE_ERROR
+        floor = term[recognised].min() if recognised.any() else 0.0
+        return similarity, log_confidence + np.where(recognised, term, floor)
+
+    def learn(self, frame_index: int, estimate_patch: np.ndarray) -> None:
+        """Every ``generative_interval`` frames, mix the estimate's (1, patch_size**2) local codes
+        into the template histogram (coded again alone: keeping every candidate's local codes cost
+        more than this)."""
+        if (frame_index + 1) % self.params.generative_interval == 0:
+            local = self.model.similarity(estimate_patch)
+            self.model.update(local["neighbours"][0], local["codes"][0], float(local["occluded_share"][0]))

@@ -7,9 +7,9 @@ from dataclasses import dataclass, field, fields
 import numpy as np
 
 from nrmlc.errors import ParameterError
-from nrmlc.geometry import usable_boxes
-from nrmlc.tracker.algorithm import FrameResult, NRMLCTracker, negative_shares as coding_negative_shares
+from nrmlc.tracker.experts import make_tracker
 from nrmlc.tracker.params import TrackerParams
+from nrmlc.tracker.records import FrameResult
 
 #: FrameResult fields stored per frame in a TrackResult (frame 0 gets NaN / 0).
 DIAGNOSTIC_FIELDS = tuple(f.name for f in fields(FrameResult) if f.name not in ("state", "box"))
@@ -67,9 +67,7 @@ def _stack(results: list[FrameResult], name: str) -> np.ndarray:
 
 
 def track_sequence(sequence, params: TrackerParams | None = None, seed: int = 0, n_frames: int | None = None,
-                   init_box=None, progress: bool = False, on_frame=None, recentre_boxes=None,
-                   recentre_every: int = 0, negative_shares: bool = False, tracker: NRMLCTracker | None = None,
-                   before_update=None) -> TrackResult:
+                   init_box=None, progress: bool = False, on_frame=None, tracker=None) -> TrackResult:
     """Track ``sequence`` from its first frame.
 
     Parameters
@@ -85,44 +83,20 @@ def track_sequence(sequence, params: TrackerParams | None = None, seed: int = 0,
         Show a tqdm progress bar on stderr.
     on_frame : callable(frame_index, tracker, frame), optional
         Called after every frame (e.g. to draw a video or collect statistics).
-    before_update : callable(frame_index, tracker, frame), optional
-        Called on every frame after the first, before the tracker sees it (e.g. to code other
-        candidates on the templates the frame is tracked with; it must draw nothing from the
-        tracker's generator, or the boxes change).
-    recentre_boxes : (n_frames, 4) array, optional
-        Diagnostics only. After every ``recentre_every``-th frame whose row here
-        is finite, the estimate moves to that box (:meth:`NRMLCTracker.move_to`);
-        the frame's recorded box is still the tracker's own. With the ground
-        truth this measures localisation from a perfect start.
-    recentre_every : int
-        0 (never) or the re-centring period in frames.
-    negative_shares : bool
-        Also record, per frame, the shares of negative entries among all candidates' c and w
-        (diagnostics ``negative_share_c``, ``negative_share_w``;
-        :func:`nrmlc.tracker.algorithm.negative_shares`), for the reports that show them.
-
-    tracker : NRMLCTracker, optional
-        The tracker to run (e.g. a subclass for a diagnostic); ``params`` and ``seed`` are then
-        its own.
+    tracker : optional
+        The tracker to run (anything with ``init``, ``update``, ``initial_box``, ``state`` and
+        ``last``, e.g. a subclass for a diagnostic); ``params`` and ``seed`` are then its own.
+        Default: :func:`~nrmlc.tracker.experts.make_tracker` of ``params`` and ``seed``.
 
     Returns
     -------
     TrackResult
     """
     if tracker is None:
-        tracker = NRMLCTracker(seed=seed, params=params)
+        tracker = make_tracker(params, seed)
     if n_frames is not None and (isinstance(n_frames, bool) or not isinstance(n_frames, (int, np.integer))
                                  or n_frames < 1):
         raise ParameterError(f"n_frames must be an integer >= 1 (or None: all frames), got {n_frames!r}")
-    if isinstance(recentre_every, bool) or not isinstance(recentre_every, (int, np.integer)) or recentre_every < 0:
-        raise ParameterError(f"recentre_every must be an integer >= 0, got {recentre_every!r}")
-    if recentre_every and recentre_boxes is None:
-        raise ParameterError("recentre_every needs recentre_boxes")
-    if recentre_every:
-        recentre_boxes = np.asarray(recentre_boxes, dtype=np.float64)
-        if recentre_boxes.ndim != 2 or recentre_boxes.shape[1] != 4:
-            raise ParameterError(f"recentre_boxes must have shape (n_frames, 4), got {recentre_boxes.shape}")
-        usable = usable_boxes(recentre_boxes)
     total = len(sequence) if n_frames is None else max(1, min(int(n_frames), len(sequence)))
     box = sequence.init_box if init_box is None else init_box
     frames = iter(sequence)
@@ -133,7 +107,7 @@ def track_sequence(sequence, params: TrackerParams | None = None, seed: int = 0,
         bar = tqdm(total=total, desc=f"{sequence.name}", unit="frame", leave=False, disable=None)
     start = time.perf_counter()
     tracking = 0.0
-    boxes, states, results, shares = [], [], [None], [(np.nan, np.nan)]
+    boxes, states, results = [], [], [None]
     for index in range(total):
         frame = next(frames)
         tick = time.perf_counter()
@@ -142,15 +116,9 @@ def track_sequence(sequence, params: TrackerParams | None = None, seed: int = 0,
             boxes.append(np.array(tracker.initial_box, dtype=np.float64))
             states.append(tracker.state.copy())
         else:
-            if before_update is not None:
-                before_update(index, tracker, frame)
             boxes.append(tracker.update(frame))
-            states.append(tracker.last.state.copy())  # the output's (a second expert's, when it is chosen)
+            states.append(tracker.last.state.copy())  # the output's (the chosen expert's, in a pair)
             results.append(tracker.last)
-            if negative_shares:
-                shares.append(coding_negative_shares(tracker.last_coding, tracker.params.dictionary_sizes))
-            if recentre_every and index % recentre_every == 0 and index < len(usable) and usable[index]:
-                tracker.move_to(recentre_boxes[index])
         tracking += time.perf_counter() - tick
         if on_frame is not None:
             on_frame(index, tracker, frame)
@@ -163,7 +131,4 @@ def track_sequence(sequence, params: TrackerParams | None = None, seed: int = 0,
     if len(results) > 1:
         results[0] = results[1]  # template for the frame-0 filler row
         diagnostics = {name: _stack(results, name) for name in DIAGNOSTIC_FIELDS}
-        if negative_shares:
-            shares = np.array(shares, dtype=np.float64)
-            diagnostics.update(negative_share_c=shares[:, 0], negative_share_w=shares[:, 1])
     return TrackResult(np.array(boxes), np.array(states), diagnostics, tracking, total_seconds)
