@@ -63,15 +63,16 @@ $(STAMP): requirements.txt pyproject.toml
 	$(PYTHON_BOOT) -m venv $(VENV)
 	$(PY) -m pip install --quiet --upgrade pip
 	$(PY) -m pip install --quiet -r requirements.txt
-	# compat: a .pth entry, so `import nrmlc` finds the package even from a folder holding a clone named nrmlc
-	$(PY) -m pip install --quiet --no-deps -e . --config-settings editable_mode=compat
+	# a static .pth entry (pyproject.toml's package-dir), so `import nrmlc` finds the package even from a
+	# folder holding a clone named nrmlc
+	$(PY) -m pip install --quiet --no-deps -e .
 	touch $(STAMP)
 
 install: $(STAMP)
 
 # The tests also need the linter and the cluster extra (tests/test_cluster.py starts a Dask LocalCluster).
 $(TEST_STAMP): $(STAMP)
-	$(PY) -m pip install --quiet -e ".[test,lint,cluster]" --config-settings editable_mode=compat
+	$(PY) -m pip install --quiet -e ".[test,lint,cluster]"
 	touch $(TEST_STAMP)
 
 test: $(TEST_STAMP)
