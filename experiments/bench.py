@@ -247,7 +247,7 @@ class StageTimer:
 
     Every function named in :data:`STAGES` that an ``nrmlc.tracker`` module
     holds is replaced by a wrapper that adds its wall time to its stage (or, during
-    the tracker's ``_update_templates``, to the template update's parts), and keeps
+    the tracker's ``update_templates``, to the template update's parts), and keeps
     its last arguments so that its floor can be timed alone on the same inputs.
     """
 
@@ -266,8 +266,8 @@ class StageTimer:
                 value = vars(module).get(name)
                 if isinstance(value, types.FunctionType):
                     self._wrap(module, name, value, label)
-        if hasattr(tracker_class, "_update_templates"):
-            original = tracker_class._update_templates
+        if hasattr(tracker_class, "update_templates"):
+            original = tracker_class.update_templates
             timer = self
 
             def update_templates(self_, *args, **kwargs):
@@ -279,8 +279,8 @@ class StageTimer:
                     timer._add((TEMPLATE_STAGE, False), time.perf_counter() - start)
                     timer._updating = False
 
-            self._patched.append((tracker_class, "_update_templates", original))
-            tracker_class._update_templates = update_templates
+            self._patched.append((tracker_class, "update_templates", original))
+            tracker_class.update_templates = update_templates
 
     def _add(self, key: tuple, seconds: float) -> None:
         self.seconds[key] = self.seconds.get(key, 0.0) + seconds
@@ -344,6 +344,7 @@ def _one_pass_parts(args: tuple, repeats: int) -> dict:
 def bench_stages(sequence, counts, warm_frames: int = 20, timed_frames: int = 60, floor_repeats: int = 15) -> list:
     """Per-stage ms per frame inside real ``update`` calls, and each stage's floor (ms per frame)."""
     from nrmlc.tracker.algorithm import NRMLCTracker
+    from nrmlc.tracker.experts import make_tracker
     from nrmlc.tracker.params import TrackerParams
 
     frames = _frames(sequence, warm_frames + timed_frames + 1)
@@ -353,7 +354,7 @@ def bench_stages(sequence, counts, warm_frames: int = 20, timed_frames: int = 60
         wait_quiet(f"stages N={n}")
         timer = StageTimer(NRMLCTracker)
         try:
-            tracker = NRMLCTracker(seed=0, params=TrackerParams(n_particles=n))
+            tracker = make_tracker(TrackerParams(n_particles=n), seed=0)
             tracker.init(frames[0], sequence.init_box)
             for frame in frames[1:warm_frames + 1]:
                 tracker.update(frame)
@@ -517,9 +518,9 @@ def bench_kernels(sequence, counts, repeats: int, reference_repeats: int, warm_f
 
 def _nrmlc_fps(sequence, frames, params) -> float:
     """Tracker fps over preloaded frames (decoding excluded), init included, as track_sequence counts."""
-    from nrmlc.tracker.algorithm import NRMLCTracker
+    from nrmlc.tracker.experts import make_tracker
 
-    tracker = NRMLCTracker(seed=0, params=params)
+    tracker = make_tracker(params, seed=0)
     start = time.perf_counter()
     tracker.init(frames[0], sequence.init_box)
     for frame in frames[1:]:
@@ -594,7 +595,7 @@ setup, data, n_frames = sys.argv[1], sys.argv[2], int(sys.argv[3])
 if setup in ("set_threads first", "serial", "spin-wait"):
     from nrmlc.config import set_threads
     set_threads(1 if setup == "serial" else None)
-from nrmlc.tracker.algorithm import NRMLCTracker
+from nrmlc.tracker.experts import make_tracker
 if setup == "set_threads after import":
     from nrmlc.config import set_threads
     set_threads(None)
@@ -602,11 +603,11 @@ import numba
 from nrmlc.data import open_sequence, synthetic_suite
 sequence = open_sequence(data) if data else synthetic_suite(n_frames=n_frames)[0]
 frames = [sequence.frame(i) for i in range(min(n_frames, len(sequence)))]
-tracker = NRMLCTracker(seed=0)
+tracker = make_tracker(seed=0)
 tracker.init(frames[0], sequence.init_box)
 for frame in frames[1:6]:
     tracker.update(frame)
-tracker = NRMLCTracker(seed=0)
+tracker = make_tracker(seed=0)
 cpu, wall = time.process_time(), time.perf_counter()
 tracker.init(frames[0], sequence.init_box)
 for frame in frames[1:]:
@@ -659,11 +660,11 @@ _STARTUP_CHILD = r"""
 import json, time
 start = time.perf_counter()
 import numpy as np
-from nrmlc.tracker.algorithm import NRMLCTracker
+from nrmlc.tracker.experts import make_tracker
 imported = time.perf_counter()
 rng = np.random.default_rng(0)
 frame = rng.random((120, 160)).astype(np.float32)
-tracker = NRMLCTracker(seed=0)
+tracker = make_tracker(seed=0)
 tracker.init(frame, (40.0, 30.0, 40.0, 32.0))
 for _ in range(5):
     tracker.update(frame)
@@ -702,7 +703,9 @@ def bench_startup(warm_repeats: int = 2) -> dict:
 _GRID_CHILD = r"""
 import json, os, sys, tempfile, time
 from nrmlc.data import SyntheticSequence, SyntheticSpec
-from nrmlc.workbench.runner import RunCache, RunSpec, prepare_kernels, process_pool
+from nrmlc.workbench.jobs import RunSpec
+from nrmlc.workbench.pool import prepare_kernels, process_pool
+from nrmlc.workbench.run_cache import RunCache
 from nrmlc.tracker.params import TrackerParams
 n_runs, n_frames, workers, dask = int(sys.argv[1]), int(sys.argv[2]), int(sys.argv[3]), sys.argv[4]
 specs = [RunSpec(SyntheticSequence(SyntheticSpec(name=f"grid-{k}", seed=k, n_frames=n_frames)), TrackerParams(),

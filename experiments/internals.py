@@ -11,7 +11,7 @@ Two things live here:
   element statistics of ``A``, the tracker's own codes, and the mean value of
   every template and candidate. Results are cached on disk (atomic ``.npz``),
   keyed by the sequence, the parameters, the seed, the sampling budget, the
-  collector version and :func:`nrmlc.workbench.runner.code_version`.
+  collector version and :func:`nrmlc.workbench.version.code_version`.
 * numpy solvers of the paper's closed forms (:func:`ridge_inverse`,
   :func:`sum_to_one_codes`, :func:`dictionary_weights`, :func:`strictly_dd`),
   used to re-solve the *same* candidates for every lambda.
@@ -26,7 +26,7 @@ from typing import ClassVar
 
 import numpy as np
 
-from nrmlc.workbench.runner import TrackerJob
+from nrmlc.workbench.jobs import TrackerJob
 from nrmlc.tracker.params import TrackerParams
 
 #: Bump when the recorded content changes (invalidates the collection cache).
@@ -119,7 +119,10 @@ def sampled_frames(n_frames: int, every: int, update_interval: int) -> list[int]
 def _record(tracker, frame_index: int, rng: np.random.Generator, n_record: int) -> dict | None:
     """Internals of the current frame's coding step (None if templates already changed)."""
     cand = tracker.last_coding
-    templates = tracker.templates
+    # In a pair the templates are the first expert's: a frame the second expert won is then
+    # skipped by the check below, as its coding was made on other templates.
+    owner = tracker.experts[0] if hasattr(tracker, "experts") else tracker
+    templates = owner.templates
     patches = cand.patches
     n_all = len(patches)
     best = int(np.argmax(cand.log_confidence))  # the estimate (step's arg max)
@@ -131,7 +134,7 @@ def _record(tracker, frame_index: int, rng: np.random.Generator, n_record: int) 
     # The tracker's dots must be these: otherwise the templates were replaced after coding.
     if not np.allclose(dots, cand.dots[pick], rtol=0, atol=1e-5):
         return None
-    n_pos = len(tracker.positive_templates)
+    n_pos = len(owner.positive_templates)
     k_max = cand.neighbours.shape[1]
     n_near = min(N_NEAREST, len(T))
     sq = np.einsum("ij,ij->i", T, T)
@@ -182,7 +185,7 @@ def _stack_records(records: list[dict]) -> dict:
 class Collection(TrackerJob):
     """Track a sequence and record the coding step's internals at sampled frames.
 
-    A job of :class:`nrmlc.workbench.runner.RunCache` (stored under ``<cache>/analysis/``),
+    A job of :class:`nrmlc.workbench.run_cache.RunCache` (stored under ``<cache>/analysis/``),
     keyed by the sequence, the parameters, the seed, the sampling budget, the
     collector version and the code version.
     """
@@ -201,7 +204,7 @@ class Collection(TrackerJob):
                                         n_nearest=N_NEAREST)
 
     def execute(self) -> dict:
-        from nrmlc.tracker.loop import track_sequence
+        from experiments.instrumented import track_instrumented
 
         sequence, params, seed, budget = self.sequence, self.params, self.seed, self.budget
         n_frames = self.frames()
@@ -215,7 +218,7 @@ class Collection(TrackerJob):
                 if found is not None:
                     records.append(found)
 
-        run = track_sequence(sequence, params, seed=seed, n_frames=n_frames, on_frame=record)
+        run = track_instrumented(sequence, params, seed=seed, n_frames=n_frames, on_frame=record)
         if not records:
             raise RuntimeError(f"{sequence.name}: no frame recorded (n_frames={n_frames}, every={budget.every})")
         arrays = _stack_records(records)

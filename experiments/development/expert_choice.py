@@ -11,10 +11,10 @@ of its estimate's eps_pos* (``average = memory * average + (1 - memory) * eps_po
 first frame), and the output is the partner's box where its average is strictly lower, the
 default's elsewhere; where the two boxes overlap at IoU >= ``--blend-iou`` (the default's
 ``expert_blend_iou``, 0.5 since round 76; 1: never), their blend
-(:func:`nrmlc.tracker.algorithm.blend_experts`); on a frame where neither run's eps_pos* is under
+(:func:`nrmlc.tracker.experts.blend_experts`); on a frame where neither run's eps_pos* is under
 ``--unrecognised-gate``, the output's size moves ``--held-share`` of the way to the last recognised
 output's (the default's ``unrecognised_size_share``, 0.7 since round 77; 0: never;
-:func:`nrmlc.tracker.algorithm.held_size`). The choice is causal and changes neither run, so
+:func:`nrmlc.tracker.experts.held_size`). The choice is causal and changes neither run, so
 it measures, before anything is built, what a second expert beside the tracker would give
 (rounds 63 and 64, docs/findings/round-63-a-second-expert.md). It prints, as ``experiments.development.screen`` does, the paired
 difference to the default on half A, half B and the synthetic suite with the adoption rule's
@@ -45,9 +45,9 @@ from experiments.grid import specs_for
 from experiments.development.screen import (_report, add_run_options, add_target_options, chosen_targets, parse_variant,
                                 screen_document, screen_row)
 from nrmlc.errors import NrmlcError
-from nrmlc.workbench.runner import RunCache
+from nrmlc.workbench.run_cache import RunCache
 from nrmlc.geometry import box_to_state
-from nrmlc.tracker.algorithm import choose_expert, experts_output
+from nrmlc.tracker.experts import choose_expert, experts_output
 from nrmlc.tracker.loop import TrackResult
 from nrmlc.tracker.params import TrackerParams
 

@@ -31,8 +31,9 @@ from experiments.tables import fmt, mean_std, save_figure, write_csv
 from nrmlc import io
 from nrmlc.geometry import usable_boxes
 from nrmlc.workbench.metrics import overlaps
-from nrmlc.workbench.runner import TrackerJob
+from nrmlc.workbench.jobs import TrackerJob
 from nrmlc.tracker.algorithm import NRMLCTracker
+from nrmlc.tracker.experts import ExpertPair
 from nrmlc.tracker.loop import track_sequence
 
 STEM = "ablation_oracle_gate"
@@ -51,18 +52,14 @@ class OracleGateTracker(NRMLCTracker):
     ground truth ``truth`` (n_frames, 4) of the frames it tracks."""
 
     def __init__(self, truth: np.ndarray, gate: str, **kwargs) -> None:
-        self.truth = np.asarray(truth, dtype=np.float64)  # before the base builds the partner
-        self.gate = gate
         super().__init__(**kwargs)
+        self.truth = np.asarray(truth, dtype=np.float64)
+        self.gate = gate
 
-    def _new_partner(self) -> NRMLCTracker:
-        # A second expert (``second_expert``) learns under the same gate.
-        return OracleGateTracker(self.truth, self.gate, seed=self.seed, params=self.params.partner_params())
-
-    def _update_templates(self, frame, result, new) -> None:
+    def update_templates(self, frame, result, estimate_patch) -> None:
         index = self.frame_index
         if self.gate == "rule" or index >= len(self.truth) or not usable_boxes(self.truth[index]):
-            super()._update_templates(frame, result, new)
+            super().update_templates(frame, result, estimate_patch)
             return
         p = self.params
         rule = not (p.occlusion_detection and result.occluded) and result.error_positive < p.update_error_threshold
@@ -73,14 +70,24 @@ class OracleGateTracker(NRMLCTracker):
         kept = result.occluded, result.error_positive
         result.occluded, result.error_positive = not accept, (0.0 if accept else np.inf)
         try:
-            super()._update_templates(frame, result, new)
+            super().update_templates(frame, result, estimate_patch)
         finally:
             result.occluded, result.error_positive = kept
 
 
+def oracle_gate_tracker(truth: np.ndarray, gate: str, seed: int, params):
+    """The tracker ``params`` describe with every expert's update under ``gate`` (a pair's second
+    expert learns under the same gate)."""
+    if params.second_expert == "off":
+        return OracleGateTracker(truth, gate, seed=seed, params=params)
+    pair = ExpertPair(seed, params)
+    pair.experts = tuple(OracleGateTracker(truth, gate, seed=seed, params=expert.params) for expert in pair.experts)
+    return pair
+
+
 @dataclass(frozen=True)
 class OracleGateRun(TrackerJob):
-    """One run of :class:`OracleGateTracker`: a job of :class:`nrmlc.workbench.runner.RunCache`, stored under
+    """One run of :class:`OracleGateTracker`: a job of :class:`nrmlc.workbench.run_cache.RunCache`, stored under
     ``<cache>/oracle_gate/``."""
 
     gate: str
@@ -96,7 +103,7 @@ class OracleGateRun(TrackerJob):
     def execute(self) -> dict:
         n = self.frames()
         truth = np.asarray(self.sequence.groundtruth, dtype=np.float64)[:n]
-        tracker = OracleGateTracker(truth, self.gate, seed=self.seed, params=self.params)
+        tracker = oracle_gate_tracker(truth, self.gate, self.seed, self.params)
         run = track_sequence(self.sequence, n_frames=n, tracker=tracker)
         updates = np.asarray(run.diagnostics.get("updated_positive", np.zeros(n)), dtype=bool)
         updates[0] = False

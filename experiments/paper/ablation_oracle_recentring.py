@@ -1,7 +1,7 @@
 """Gap evidence: is accuracy lost within a frame, or over many frames?
 
 Every ``R`` frames the tracker's estimate is moved to the ground truth
-(:meth:`nrmlc.NRMLCTracker.move_to`); its templates, its random draws and its
+(:func:`experiments.instrumented.move_to`); its templates, its random draws and its
 template updates are its own. The box scored for each frame is still the
 tracker's estimate, made from particles drawn around the previous state.
 
@@ -21,12 +21,12 @@ Outputs ``figures/ablation_oracle_recentring.{png,csv,json}``.
 """
 from __future__ import annotations
 
-import dataclasses
 
 import numpy as np
 
 from experiments import paper_numbers as paper
 from experiments.grid import script_entry, section
+from experiments.instrumented import DiagnosticRun
 from experiments.sequence_sets import paper_name
 from experiments.tables import fmt, mean_std, save_figure, write_csv
 from nrmlc import io
@@ -45,7 +45,7 @@ def period_label(period: int) -> str:
 def _specs(context, sequences, period: int) -> list:
     specs = context.specs(sequences, context.base_params, context.ablation_seeds,
                           label=f"re-centring: {period_label(period)}")
-    return [dataclasses.replace(spec, recentre_every=period) for spec in specs]
+    return [DiagnosticRun.of(spec, recentre_every=period) for spec in specs]
 
 
 def runs(context) -> list:

@@ -40,12 +40,12 @@ occluded. Outputs ``ablations.{png,csv,json}``.
 """
 from __future__ import annotations
 
-import dataclasses
 
 import numpy as np
 
 from experiments import paper_numbers as paper
 from experiments.grid import params_differences, score, script_entry
+from experiments.instrumented import DiagnosticRun
 from experiments.sequence_sets import paper_name
 from experiments.shared import TRIAL_VALUES, plain_params
 from experiments.tables import fmt, mean_std, save_figure, write_csv
@@ -86,12 +86,11 @@ def _choices(field: str) -> tuple:
 def switches() -> list[tuple[str, str]]:
     """(family, field) of every switch of :class:`TrackerParams` (a flag, or a field with declared
     choices) beyond the ones with a family of their own: each new switch gets its ablation rows."""
-    import dataclasses
 
     from nrmlc.tracker.params import TrackerParams
 
-    return [(field.name.replace("_", " "), field.name) for field in dataclasses.fields(TrackerParams)
-            if field.name not in OWN_FAMILIES and len(_choices(field.name)) > 1]
+    return [(name.replace("_", " "), name) for name in TrackerParams().as_dict()
+            if name not in OWN_FAMILIES and len(_choices(name)) > 1]
 
 
 def families(context) -> list[tuple[str, list[tuple[str, object]]]]:
@@ -173,7 +172,7 @@ def _with_scale_sigma(sigmas: tuple, scale_sigma: float) -> tuple:
 
 def _specs(context, sequences, params, seeds, label: str) -> list:
     """The runs of one configuration, recording the negative shares the table reports."""
-    return [dataclasses.replace(spec, negative_shares=True) for spec in context.specs(sequences, params, seeds,
+    return [DiagnosticRun.of(spec, negative_shares=True) for spec in context.specs(sequences, params, seeds,
                                                                                       label=label)]
 
 

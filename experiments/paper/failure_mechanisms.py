@@ -48,7 +48,7 @@ Per run (frame 0, the given box, excluded throughout):
    appearance). Added after the seven above named nothing for David3 and Caviar1, with their
    thresholds set before any run was read;
 10. **re-detection**: share of frames on which the re-detection search ran (its trigger,
-   ``nrmlc.tracker.redetect.REDETECT_TRIGGER``, fired), and the same share among the
+   ``nrmlc.tracker.records.NO_POSITIVE_ERROR``, fired), and the same share among the
    annotated frames with IoU < :data:`LOST_IOU`: whether the search runs where the box is
    off the target (0 for a configuration without re-detection);
 11. **the box's fit**: the mean IoU on the annotated frames on the target (IoU >= :data:`LOST_IOU`)
@@ -99,7 +99,7 @@ from experiments.tables import fmt, mean_std, save_figure, write_csv
 from nrmlc import io
 from nrmlc.geometry import usable_boxes
 from nrmlc.workbench.metrics import overlaps as overlaps_of
-from nrmlc.tracker.redetect import REDETECT_TRIGGER
+from nrmlc.tracker.records import NO_POSITIVE_ERROR
 
 STEM = "failure_mechanisms"
 TITLE = "Failure mechanisms: no positive template among the nearest, occlusion flag, scale drift, loss of lock"
@@ -107,7 +107,7 @@ TITLE = "Failure mechanisms: no positive template among the nearest, occlusion f
 #: eps_pos* at or above this: no positive template among the best candidate's nearest
 #: (eps_pos = |y|^2 = 1 for unit patches; a little below 1 for rounding): the event that
 #: triggers the tracker's re-detection, at the same cut-off.
-NO_POSITIVE = REDETECT_TRIGGER
+NO_POSITIVE = NO_POSITIVE_ERROR
 #: Scale drift "at the end": the last this share of the annotated frames (at least one).
 LAST_SHARE = 0.1
 #: Motion beyond reach: a ground-truth step of more than this many sigmas of the translation noise.

@@ -24,7 +24,7 @@ import numpy as np
 from experiments.grid import describe_params, json_report, script_entry
 from experiments.shared import ON_TARGET_IOU, blocks
 from experiments.tables import save_figure
-from nrmlc.workbench.runner import TrackerJob, frames_tracked
+from nrmlc.workbench.jobs import TrackerJob, frames_tracked
 
 STEM = "scale_likelihood"
 TITLE = "Scale drift: the likelihood across scale at the ground truth's centre"
@@ -45,7 +45,7 @@ PROFILE_VERSION = 1
 class ScaleProfile(TrackerJob):
     """Track a sequence and, at each annotated frame, code the ground truth at :data:`SCALES`.
 
-    A job of :class:`nrmlc.workbench.runner.RunCache` (stored under ``<cache>/analysis/``), keyed by
+    A job of :class:`nrmlc.workbench.run_cache.RunCache` (stored under ``<cache>/analysis/``), keyed by
     the sequence, the parameters, the seed, the frame cap, the profile version and the
     code version.
     """
@@ -65,7 +65,7 @@ class ScaleProfile(TrackerJob):
     def execute(self) -> dict:
         from nrmlc.geometry import box_to_state, usable_boxes
         from nrmlc.data.image import as_gray_frame
-        from nrmlc.tracker.loop import track_sequence
+        from experiments.instrumented import track_instrumented
 
         sequence, params = self.sequence, self.params
         groundtruth = sequence.groundtruth
@@ -82,7 +82,7 @@ class ScaleProfile(TrackerJob):
                 error_positive.append(coding.error_positive)
                 error_negative.append(coding.error_negative)
 
-        run = track_sequence(sequence, params, seed=self.seed, n_frames=self.frames(), before_update=code_scales)
+        run = track_instrumented(sequence, params, seed=self.seed, n_frames=self.frames(), probe=code_scales)
         boxes = run.boxes
         empty = np.empty((0, len(SCALES)))
         return {"boxes": boxes, "frames": np.array(frames, dtype=np.int64),

@@ -4,7 +4,7 @@ got10k's experiments (``ExperimentOTB``, ``ExperimentGOT10k``, ``ExperimentVOT``
 run any subclass of ``got10k.trackers.Tracker``: its ``track(img_files, box)`` opens
 each frame with PIL, converts it to RGB and calls ``init(image, box)`` on the first
 frame and ``update(image) -> box`` on the others. :class:`NRMLCGot10k` is that
-subclass around :class:`~nrmlc.NRMLCTracker` (which takes PIL images as they come)::
+subclass around :func:`~nrmlc.make_tracker`'s tracker (which takes PIL images as they come)::
 
     from got10k.experiments import ExperimentOTB
     from nrmlc.workbench.toolkits import NRMLCGot10k
@@ -22,7 +22,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from nrmlc.tracker.algorithm import NRMLCTracker
+from nrmlc.tracker.experts import make_tracker
 from nrmlc.tracker.params import TrackerParams
 
 try:  # the toolkit is optional: nrmlc does not need it
@@ -47,7 +47,7 @@ class NRMLCGot10k(_Got10kTracker):
     """
 
     def __init__(self, seed: int = 0, params: TrackerParams | None = None, name: str = "NRMLC", **overrides) -> None:
-        self.tracker = NRMLCTracker(seed=seed, params=params, **overrides)
+        self.tracker = make_tracker(params, seed, **overrides)
         if _Got10kTracker is object:
             self.name, self.is_deterministic = name, True
         else:
