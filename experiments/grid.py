@@ -27,7 +27,8 @@ from pathlib import Path
 from experiments.sequence_sets import DEVELOPMENT_SEQUENCES, PAPER_SEQUENCES
 from nrmlc.config import data_root_from_env
 from nrmlc.io import write_json
-from nrmlc.workbench.runner import DEFAULT_CACHE, RunCache, RunSpec, frames_tracked
+from nrmlc.workbench.jobs import RunSpec, frames_tracked
+from nrmlc.workbench.run_cache import DEFAULT_CACHE, RunCache
 from nrmlc.tracker.params import PRESETS, TrackerParams
 
 REPO_ROOT = Path(__file__).resolve().parent.parent

@@ -38,7 +38,8 @@ from typing import ClassVar
 import numpy as np
 
 from experiments.sequence_sets import PAPER_NAME_OF, paper_name
-from nrmlc.workbench.runner import CachedJob, RunCache, sequence_identity
+from nrmlc.workbench.jobs import CachedJob, sequence_identity
+from nrmlc.workbench.run_cache import RunCache
 
 #: Bump when the live runner's behaviour changes (it is part of every key, as is each
 #: tracker's entry of :data:`LIVE_PARAMETERS`).
@@ -120,7 +121,7 @@ def live_label(name: str) -> str:
 class LiveSpec(CachedJob):
     """One live OpenCV run: ``tracker`` on the first ``n_frames`` frames of ``sequence``.
 
-    A job of :class:`nrmlc.workbench.runner.RunCache`, stored under ``<cache>/peers/``; its key
+    A job of :class:`nrmlc.workbench.run_cache.RunCache`, stored under ``<cache>/peers/``; its key
     does not depend on our code version (OpenCV's version is in it instead).
     """
 

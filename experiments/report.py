@@ -12,7 +12,7 @@ import platform
 from experiments.grid import params_differences
 from experiments.sequence_sets import paper_name
 from nrmlc import io
-from nrmlc.workbench.runner import code_version
+from nrmlc.workbench.version import code_version
 
 REPORT_NAME = "REPORT.md"
 

@@ -14,7 +14,7 @@ from experiments.paper import (
 from experiments.internals import Budget
 from experiments.grid import Context, run_script
 from nrmlc.data import synthetic_suite
-from nrmlc.workbench.runner import RunCache
+from nrmlc.workbench.run_cache import RunCache
 
 TINY = Budget(max_frames=None, every=4, n_candidates=20, max_sequences=2, seeds=(0,), n_particles=80)
 

@@ -1,5 +1,5 @@
 """The cluster path: a small grid on a real Dask cluster (``distributed.LocalCluster``,
-2 worker processes) through :meth:`nrmlc.workbench.runner.RunCache.run`.
+2 worker processes) through :meth:`nrmlc.workbench.run_cache.RunCache.run`.
 
 - the cached results equal the local process pool's, array by array (every array but
   the two timings, which differ from run to run) and their descriptions byte for byte;
@@ -22,7 +22,8 @@ import pytest
 distributed = pytest.importorskip("distributed", reason="needs the cluster extra: pip install -e .[cluster]")
 
 from nrmlc.data import SyntheticSequence, SyntheticSpec  # noqa: E402
-from nrmlc.workbench.runner import RunCache, RunSpec  # noqa: E402
+from nrmlc.workbench.jobs import RunSpec  # noqa: E402
+from nrmlc.workbench.run_cache import RunCache  # noqa: E402
 from nrmlc.tracker.params import TrackerParams  # noqa: E402
 
 #: Arrays of a cached run that measure time, not results.

@@ -14,7 +14,9 @@ import pytest
 
 from nrmlc.workbench.attributes import ATTRIBUTES, read_attribute_file, read_attributes
 from nrmlc.cli import main
-from nrmlc.workbench.compare import compare
+from nrmlc.workbench.report import plot_comparison
+from nrmlc.workbench.score import Comparison, TrackerScores, compare
+from nrmlc.workbench.speed import plot_speed
 from nrmlc.data import open_sequence
 from nrmlc.testing.scenes import write_small_suite
 from nrmlc.errors import DataError
@@ -143,6 +145,23 @@ def test_names_differing_only_by_case_are_refused(data_root, names, tmp_path, ca
     assert f"{names[0].upper()}.txt and " in err and f"{names[0]}.txt both name sequence" in err
 
 
+def test_a_folder_without_result_files_is_refused_in_one_line(data_root, names, peer, tmp_path, capsys):
+    """A sequence folder, the data root or a folder of misnamed files is no tracker's results: an
+    all-zero table would read as a tracker that failed everywhere."""
+    misnamed = tmp_path / "misnamed"
+    for name in names:
+        write_boxes(misnamed / f"{name}_boxes.txt", shifted(data_root, name, 1.0))
+    for folder in (data_root / names[0], data_root, misnamed):
+        code, out, err = run_main(["evaluate", "--results", peer, folder, "--data", data_root], capsys)
+        assert code == 2 and out == "", err
+        assert err.count("\n") == 1 and err.startswith(f"error: {folder}: no result files (<Seq>.txt or "
+                                                        f"<Seq>_<Tracker>.mat) for any of the 3 sequences")
+    with pytest.raises(DataError, match="no result files"):
+        compare([misnamed], data_root)
+    code, _, err = run_main(["evaluate", "--results", peer, "--data", data_root], capsys)
+    assert code == 0, err
+
+
 # ------------------------------------------------------------------ one file
 def test_single_file_numbers_say_which_frames_they_are_over(data_root, names, tmp_path, capsys):
     short = tmp_path / "short.txt"
@@ -256,3 +275,55 @@ def test_speed_and_attribute_plot_errors(tmp_path, capsys, peer, data_root):
     code, _, err = run_main(["evaluate", "--results", peer, "--data", data_root, "--speed-plot", tmp_path / "s.xyz"],
                             capsys)
     assert code == 2 and "--speed-plot" in err and "'xyz'" in err
+
+
+def kept_figures(monkeypatch) -> list:
+    """The figures the plots draw, kept open (``plt.close`` is called on each after it is saved)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    kept = []
+    monkeypatch.setattr(plt, "close", kept.append)
+    return kept
+
+
+def synthetic_comparison(data_root, names, fps=()) -> Comparison:
+    """Trackers from 1 px to 24 px off on one sequence (MIL the worst), with the given fps."""
+    sequence = open_sequence(data_root / names[0])
+    trackers = []
+    for k, name in enumerate(["NRMLC", "CSRT", "KCF", "TLD", "MIL"]):
+        boxes = shifted(data_root, names[0], 1.0 + 6.0 * k)
+        trackers.append(TrackerScores(name, data_root, files={sequence.name: data_root / f"{name}.txt"},
+                                      evaluations={sequence.name: evaluate(boxes, sequence.groundtruth)},
+                                      speeds={sequence.name: (fps[k], len(boxes))} if fps else {}))
+    return Comparison([sequence.name], trackers)
+
+
+def test_the_comparison_legends_cover_no_curve(data_root, names, tmp_path, monkeypatch):
+    figures = kept_figures(monkeypatch)
+    plot_comparison(synthetic_comparison(data_root, names), tmp_path / "p.png")
+    figure = figures[0]
+    figure.canvas.draw()
+    renderer = figure.canvas.get_renderer()
+    for axis in figure.axes:
+        legend = axis.get_legend().get_window_extent(renderer)
+        assert not legend.overlaps(axis.get_window_extent(renderer)), axis.get_title()
+
+
+@pytest.mark.parametrize("fps", [(2.0, 5.0, 9.0, 30.0, 80.0), (0.2, 0.5, 1.0, 3.0, 8.0), (20.0, 25.0, 30.0, 35.0, 45.0),
+                                 (0.3, 2.5, 40.0, 900.0, 3000.0)])
+def test_the_speed_plot_fps_labels_do_not_overlap(fps, data_root, names, tmp_path, monkeypatch):
+    """Over about 1.5 decades matplotlib's own log labels name minor ticks (3x10^1, 4x10^1) into each other."""
+    figures = kept_figures(monkeypatch)
+    plot_speed(synthetic_comparison(data_root, names, fps), tmp_path / "s.png")
+    axis = figures[0].axes[0]
+    figures[0].canvas.draw()
+    renderer = figures[0].canvas.get_renderer()
+    low, high = axis.get_xlim()
+    labels = sorted((label.get_window_extent(renderer) for label in axis.get_xticklabels(which="both")
+                     if label.get_visible() and label.get_text() and low <= label.get_position()[0] <= high),
+                    key=lambda box: box.x0)
+    assert len(labels) >= 2
+    assert all(left.x1 + 2 < right.x0 for left, right in zip(labels, labels[1:]))

@@ -233,7 +233,7 @@ def test_a_baseline_is_carried_from_another_code_version_only_when_bit_identical
     from experiments.development import screen
     from experiments.grid import specs_for
     from nrmlc.data import synthetic_suite
-    from nrmlc.workbench.runner import RunCache
+    from nrmlc.workbench.run_cache import RunCache
     from nrmlc.tracker.params import TrackerParams
 
     cache = RunCache(tmp_path / "cache")

@@ -10,7 +10,7 @@ import pytest
 from experiments.paper import failure_mechanisms as script
 from experiments.grid import Context, context_from_args, run_script
 from nrmlc.data import synthetic_suite
-from nrmlc.workbench.runner import RunCache
+from nrmlc.workbench.run_cache import RunCache
 from nrmlc.tracker.loop import TrackResult
 
 N = 40

@@ -25,7 +25,7 @@ from got10k.trackers import Tracker  # noqa: E402
 from PIL import Image  # noqa: E402
 
 from nrmlc.cli import main  # noqa: E402
-from nrmlc.workbench.compare import compare  # noqa: E402
+from nrmlc.workbench.score import compare  # noqa: E402
 from nrmlc.data import synthetic_suite  # noqa: E402
 from nrmlc.io import write_boxes  # noqa: E402
 from nrmlc.workbench.metrics import overlaps  # noqa: E402

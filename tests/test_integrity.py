@@ -28,7 +28,8 @@ from nrmlc.workbench.results_layout import MANIFEST_NAME
 from nrmlc.data import list_sequences, open_sequence, read_box_file, synthetic_suite, write_otb_sequence
 from nrmlc.data import fingerprint
 from nrmlc.errors import DataError, OutputError, ParameterError
-from nrmlc.workbench.runner import RunCache, RunSpec
+from nrmlc.workbench.jobs import RunSpec
+from nrmlc.workbench.run_cache import RunCache
 from nrmlc.tracker.algorithm import NRMLCTracker
 from nrmlc.tracker.params import TrackerParams
 from nrmlc.tracker.loop import track_sequence

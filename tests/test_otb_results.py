@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from nrmlc.cli import main
-from nrmlc.workbench.compare import compare
+from nrmlc.workbench.score import compare
 from nrmlc.data import open_sequence, read_box_file
 from nrmlc.errors import DataError, ParameterError
 from nrmlc.workbench.metrics import evaluate, overlaps

@@ -301,7 +301,7 @@ def test_sequence_identity_is_its_content(seq, tmp_path):
     assert moved.identity == sequence.identity + ":init_box=3.0,4.5,20.0,21.0"
     assert open_sequence(seq, init_box=(3, 4.5, 20, 21)).identity == moved.identity
     assert synthetic.with_init_box((1, 2, 10, 10)).identity == synthetic.identity + ":init_box=1.0,2.0,10.0,10.0"
-    from nrmlc.workbench.runner import sequence_identity
+    from nrmlc.workbench.jobs import sequence_identity
 
     assert sequence_identity(moved) == moved.identity
 

@@ -1,4 +1,5 @@
-"""nrmlc.workbench.runner: cached, resumable grids of runs. Work is never lost.
+"""nrmlc.workbench.run_cache and the jobs, pool and versions behind it: cached, resumable grids of runs.
+Work is never lost.
 
 - a grid killed with SIGKILL part-way resumes without recomputing finished
   runs and leaves no corrupt file;
@@ -22,11 +23,18 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-import nrmlc.workbench.runner as runner
+import nrmlc.workbench.jobs as jobs
+import nrmlc.workbench.pool as pool
+import nrmlc.workbench.run_cache as run_cache
+import nrmlc.workbench.version as version
 from nrmlc.data import SyntheticSequence, SyntheticSpec
-from nrmlc.workbench.runner import RunCache, RunSpec, code_version, sequence_identity
-from nrmlc.tracker.params import TrackerParams
+from nrmlc.errors import ParameterError
 from nrmlc.tracker.loop import TrackResult
+from nrmlc.tracker.params import TrackerParams
+from nrmlc.workbench.jobs import RunSpec, sequence_identity
+from nrmlc.workbench.progress import Progress
+from nrmlc.workbench.run_cache import RunCache
+from nrmlc.workbench.version import code_version
 
 REPO_ROOT = Path(__file__).resolve().parent.parent
 
@@ -51,7 +59,7 @@ def counted(monkeypatch) -> list:
         computed.append(spec.label)
         return fake_arrays(spec)
 
-    monkeypatch.setattr(runner, "_execute", fake_execute)
+    monkeypatch.setattr(pool, "execute_job", fake_execute)
     return computed
 
 
@@ -94,7 +102,7 @@ def test_changed_parameter_recomputes_exactly_its_runs(tmp_path, counted):
 def test_changed_code_version_recomputes_everything(tmp_path, counted, monkeypatch):
     RunCache(tmp_path).run(grid(), jobs=1, progress=False)
     counted.clear()
-    monkeypatch.setattr(runner, "code_version", lambda: "0123456789abcdef")
+    monkeypatch.setattr(version, "code_version", lambda: "0123456789abcdef")
     cache = RunCache(tmp_path)
     assert cache.version == "0123456789abcdef"
     cache.run(grid(), jobs=1, progress=False)
@@ -105,11 +113,11 @@ def test_changed_code_version_recomputes_everything(tmp_path, counted, monkeypat
 def test_runs_read_from_another_numba_target_are_named_and_kept(tmp_path, counted, monkeypatch):
     RunCache(tmp_path).run(grid(), jobs=1, progress=False)
     sidecars = sorted(tmp_path.glob("*.json"))
-    assert {json.loads(p.read_text())["computed_for"] for p in sidecars} == {runner.numba_target()}
+    assert {json.loads(p.read_text())["computed_for"] for p in sidecars} == {version.numba_target()}
     with warnings.catch_warnings():
         warnings.simplefilter("error")  # the same target: no warning
         RunCache(tmp_path).run(grid(), jobs=1, progress=False)
-    monkeypatch.setattr(runner, "numba_target", lambda: "othercpu (host features)")
+    monkeypatch.setattr(version, "numba_target", lambda: "othercpu (host features)")
     counted.clear()
     with pytest.warns(UserWarning, match=r"4 of the cached runs read were computed for another numba target"):
         RunCache(tmp_path).run(grid(), jobs=1, progress=False)
@@ -134,50 +142,50 @@ def _target(monkeypatch, name, features=None):
     monkeypatch.setattr(numba.config, "CPU_NAME", name)
     monkeypatch.setattr(numba.config, "CPU_FEATURES", features)
     monkeypatch.setattr(binding, "get_host_cpu_name", lambda: "hostcpu")
-    monkeypatch.setattr(runner, "_target_problem", None)
+    monkeypatch.setattr(pool, "_target_problem", None)
     children = []
 
     def child(returncode, stderr=""):
         def run(argv, **kwargs):
             children.append((argv, kwargs["env"]))
             return subprocess.CompletedProcess(argv, returncode, "", stderr)
-        monkeypatch.setattr(runner.subprocess, "run", run)
+        monkeypatch.setattr(pool.subprocess, "run", run)
     return children, child
 
 
 def test_a_numba_target_this_cpu_cannot_run_is_refused_in_one_line(monkeypatch):
     children, child = _target(monkeypatch, "znver4", "")
     child(-signal.SIGILL)
-    with pytest.raises(runner.ParameterError, match=r"NUMBA_CPU_NAME=znver4.*this CPU \(hostcpu\) cannot run.*"
+    with pytest.raises(ParameterError, match=r"NUMBA_CPU_NAME=znver4.*this CPU \(hostcpu\) cannot run.*"
                                                    r"died with SIGILL") as caught:
-        runner.check_numba_target()
+        pool.check_numba_target()
     assert "\n" not in str(caught.value) and len(children) == 1
     argv, env = children[0]
-    assert "warm_up()" in argv[-1] and env["PYTHONPATH"].split(os.pathsep)[0] == str(Path(runner.__file__).parents[2])
-    with pytest.raises(runner.ParameterError):  # remembered: not probed twice
-        runner.check_numba_target()
+    assert "warm_up()" in argv[-1] and env["PYTHONPATH"].split(os.pathsep)[0] == str(Path(pool.__file__).parents[2])
+    with pytest.raises(ParameterError):  # remembered: not probed twice
+        pool.check_numba_target()
     assert len(children) == 1
     children, child = _target(monkeypatch, "znver4", "")
     child(1, "Traceback ...\nImportError: no numba here\n")
-    with pytest.raises(runner.ParameterError, match=r"failed \(ImportError: no numba here\)"):
-        runner.check_numba_target()
+    with pytest.raises(ParameterError, match=r"failed \(ImportError: no numba here\)"):
+        pool.check_numba_target()
 
 
 def test_a_numba_target_this_cpu_runs_passes_and_the_own_target_is_not_probed(monkeypatch):
     children, child = _target(monkeypatch, "znver4", "")
     child(0)
-    runner.check_numba_target()
-    runner.check_numba_target()
+    pool.check_numba_target()
+    pool.check_numba_target()
     assert len(children) == 1
     for name, features in ((None, None), ("hostcpu", None), ("hostcpu", "")):
         children, child = _target(monkeypatch, name, features)
         child(-signal.SIGILL)
-        runner.check_numba_target()  # the host's own code: nothing to probe
+        pool.check_numba_target()  # the host's own code: nothing to probe
         assert children == []
     children, child = _target(monkeypatch, None, "+avx512f")  # features beyond the host's are probed
     child(-signal.SIGILL)
-    with pytest.raises(runner.ParameterError, match="SIGILL"):
-        runner.check_numba_target()
+    with pytest.raises(ParameterError, match="SIGILL"):
+        pool.check_numba_target()
 
 
 def test_code_version_follows_the_sources_that_decide_the_boxes(monkeypatch):
@@ -197,8 +205,8 @@ def test_code_version_follows_the_sources_that_decide_the_boxes(monkeypatch):
 def test_executable_text_leaves_out_comments_docstrings_and_blank_lines():
     source = ('"""The module."""\nimport math  # why\n\n\ndef f(x):\n    """Doc, \u00e9."""  # both\n'
               '    # a whole line\n    y = "a # b"; "c"\n    return x + 1   \n')
-    assert runner.executable_text(source) == 'import math\ndef f(x):\n    y = "a # b";\n    return x + 1'
-    assert runner.executable_text(source.replace("x + 1", "x + 2")) != runner.executable_text(source)
+    assert version.executable_text(source) == 'import math\ndef f(x):\n    y = "a # b";\n    return x + 1'
+    assert version.executable_text(source.replace("x + 1", "x + 2")) != version.executable_text(source)
 
 
 def test_run_keys_are_pinned():
@@ -206,14 +214,14 @@ def test_run_keys_are_pinned():
     spec = RunSpec(tiny_sequence(0), TrackerParams(), seed=3, n_frames=5, label="not part of the key")
     description = spec.description("0123456789abcdef")
     assert description == {"sequence": sequence_identity(spec.sequence), "sequence_name": "tiny-0",
-                           "params": runner.params_for_key(TrackerParams()), "seed": 3, "n_frames": 5,
+                           "params": jobs.params_for_key(TrackerParams()), "seed": 3, "n_frames": 5,
                            "code_version": "0123456789abcdef"}
     text = json.dumps(description, sort_keys=True, default=str)
     assert spec.key("0123456789abcdef") == hashlib.sha256(text.encode()).hexdigest()[:24]
     # The hash of a fixed description, pinned literally.
     fixed = {"sequence": "folder:/data/Car4:Car4:659", "sequence_name": "Car4", "params": {"lam": 1.0},
              "seed": 0, "n_frames": None, "code_version": "0123456789abcdef"}
-    assert runner.description_key(fixed) == "c11d3c395e02361a13af561a"
+    assert jobs.description_key(fixed) == "c11d3c395e02361a13af561a"
     assert RunSpec(tiny_sequence(0), recentre_every=10).description("v")["recentre_every"] == 10
     assert "recentre_every" not in RunSpec(tiny_sequence(0)).description("v")
 
@@ -224,16 +232,16 @@ def test_a_switch_added_later_stays_out_of_the_key_while_off(monkeypatch):
     before = RunSpec(tiny_sequence(0), TrackerParams(), seed=0).key("v")
     # Every switch the default holds is on: on a branch that adds a switch off by default this line
     # fails, by design: TrackerParams holds only what is adopted, and a switch not adopted stays on its branch.
-    assert runner.params_for_key(TrackerParams()) == TrackerParams().as_dict()
-    monkeypatch.setattr(runner, "SWITCHES_ADDED_LATER", {"redetect_count": 300})
-    assert "redetect_count" not in runner.params_for_key(TrackerParams())
+    assert jobs.params_for_key(TrackerParams()) == TrackerParams().as_dict()
+    monkeypatch.setattr(jobs, "SWITCHES_ADDED_LATER", {"redetect_count": 300})
+    assert "redetect_count" not in jobs.params_for_key(TrackerParams())
     assert RunSpec(tiny_sequence(0), TrackerParams(), seed=0).key("v") != before  # the field left the key
-    assert runner.params_for_key(TrackerParams(redetect_count=0))["redetect_count"] == 0
+    assert jobs.params_for_key(TrackerParams(redetect_count=0))["redetect_count"] == 0
 
 
 def test_frames_tracked_is_one_rule():
     sequence = tiny_sequence(0, n_frames=6)
-    assert [runner.frames_tracked(sequence, n) for n in (None, 0, 3, 6, 100)] == [6, 1, 3, 6, 6]
+    assert [jobs.frames_tracked(sequence, n) for n in (None, 0, 3, 6, 100)] == [6, 1, 3, 6, 6]
     assert RunSpec(sequence, n_frames=4).frames() == 4
 
 
@@ -254,12 +262,12 @@ def test_failed_store_leaves_the_run_missing(tmp_path, counted, monkeypatch):
         handle.write(b"PK partial")
         raise OSError(28, "No space left on device")
 
-    monkeypatch.setattr(runner.io.np, "savez_compressed", broken)
+    monkeypatch.setattr(run_cache.io.np, "savez_compressed", broken)
     with pytest.raises(OSError):
         cache.run([spec], jobs=1, progress=False)
     monkeypatch.undo()
     assert not cache.has(spec) and list(tmp_path.iterdir()) == []
-    monkeypatch.setattr(runner, "_execute", lambda spec, threads: fake_arrays(spec))
+    monkeypatch.setattr(pool, "execute_job", lambda spec, threads: fake_arrays(spec))
     assert cache.run([spec], jobs=1, progress=False)[0].boxes.shape == (6, 4)
 
 
@@ -272,37 +280,40 @@ def test_pool_failure_keeps_the_finished_runs(tmp_path, monkeypatch):
         time.sleep(0.05)
         return fake_arrays(spec)
 
-    monkeypatch.setattr(runner, "_execute", execute)
+    monkeypatch.setattr(pool, "execute_job", execute)
     specs = grid()
     cache = RunCache(tmp_path)
-    with futures.ThreadPoolExecutor(max_workers=4) as pool:  # all four start at once
+    with futures.ThreadPoolExecutor(max_workers=4) as executor:  # all four start at once
         with pytest.raises(RuntimeError, match="boom"):
-            cache.run(specs, executor=pool, progress=False)
+            cache.run(specs, executor=executor, progress=False)
     assert [cache.has(s) for s in specs] == [True, False, True, True]
 
 
 # ------------------------------------------------------ killed and resumed
 GRID_SCRIPT = """
 import sys, time
-import nrmlc.workbench.runner as runner
+import nrmlc.workbench.jobs as jobs
+import nrmlc.workbench.pool as pool
+import nrmlc.workbench.run_cache as run_cache
+import nrmlc.workbench.version as version
 from nrmlc.data import SyntheticSequence, SyntheticSpec
 from nrmlc.tracker.params import TrackerParams
 
 computed = []
-real_execute = runner._execute
+real_execute = pool.execute_job
 def execute(spec, threads):
     computed.append(spec.label)
     time.sleep(float(sys.argv[2]))  # long enough to be killed part-way
     return real_execute(spec, threads)
-runner._execute = execute
-runner.code_version = lambda: "fixed"  # what is tested here is resumption, not source edits
+pool.execute_job = execute
+version.code_version = lambda: "fixed"  # what is tested here is resumption, not source edits
 
 params = TrackerParams(n_particles=30, n_positive=10, n_negative=20, max_positive=20)
-specs = [runner.RunSpec(SyntheticSequence(SyntheticSpec(
+specs = [jobs.RunSpec(SyntheticSequence(SyntheticSpec(
              name=f"tiny-{k}", seed=k, n_frames=6, frame_height=48, frame_width=64, target_width=16,
              target_height=12, translation_amplitude_x=8, translation_amplitude_y=6, n_distractors=1)),
              params, seed=0, label=f"tiny-{k}") for k in range(4)]
-results = runner.RunCache(sys.argv[1]).run(specs, jobs=1, progress=False)
+results = run_cache.RunCache(sys.argv[1]).run(specs, jobs=1, progress=False)
 assert len(results) == 4
 print("computed", len(computed), *computed)
 """
@@ -392,20 +403,22 @@ def test_ensure_recomputes_a_truncated_file(tmp_path, counted):
 # -------------------------------------------- process pools and OpenMP
 FORK_SCRIPT = """
 import sys
-import nrmlc.workbench.runner as runner
+import nrmlc.workbench.jobs as jobs
+import nrmlc.workbench.pool as pool
+import nrmlc.workbench.run_cache as run_cache
 from nrmlc.data import SyntheticSequence, SyntheticSpec
 from nrmlc.tracker.params import TrackerParams
 
 if __name__ == "__main__":
     params = TrackerParams(n_particles=30, n_positive=10, n_negative=20, max_positive=20)
-    specs = [runner.RunSpec(SyntheticSequence(SyntheticSpec(
+    specs = [jobs.RunSpec(SyntheticSequence(SyntheticSpec(
                  name=f"tiny-{k}", seed=k, n_frames=6, frame_height=48, frame_width=64, target_width=16,
                  target_height=12, translation_amplitude_x=8, translation_amplitude_y=6, n_distractors=1)),
                  params, seed=0, label=f"tiny-{k}") for k in range(3)]
-    cache = runner.RunCache(sys.argv[1])
+    cache = run_cache.RunCache(sys.argv[1])
     # A lone missing run is computed here, in this process: numba's OpenMP threads start.
     cache.run(specs[:1], jobs=2, progress=False)
-    runner._execute(specs[0], 2)
+    pool.execute_job(specs[0], 2)
     # Then a script needs two more runs: a process pool starts after OpenMP was used.
     results = cache.run(specs, jobs=2, progress=False)
     print("ok", len(results))
@@ -425,11 +438,11 @@ def test_a_pool_after_openmp_in_this_process_does_not_crash(tmp_path):
 
 
 def test_default_pool_starts_fresh_processes():
-    pool = runner.process_pool(1)
+    workers = pool.process_pool(1)
     try:
-        assert pool._mp_context.get_start_method() in ("forkserver", "spawn")
+        assert workers._mp_context.get_start_method() in ("forkserver", "spawn")
     finally:
-        pool.shutdown()
+        workers.shutdown()
 
 
 # ------------------------------------------------------------- progress
@@ -437,7 +450,7 @@ def test_progress_lines_when_not_a_terminal():
     import io
 
     stream = io.StringIO()
-    progress = runner.Progress(300, 3, stream=stream, interval=0.0)
+    progress = Progress(300, 3, stream=stream, interval=0.0)
     for _ in range(3):
         progress.update(100, "x")
     progress.close()
@@ -446,20 +459,20 @@ def test_progress_lines_when_not_a_terminal():
     assert "2/3 runs, 200/300 frames" in lines[2] and "ETA" in lines[2]
     assert lines[-1].startswith("[runs] done: 3/3 runs, 300/300 frames")
     silent = io.StringIO()
-    runner.Progress(10, 1, enabled=False, stream=silent).close()
+    Progress(10, 1, enabled=False, stream=silent).close()
     assert silent.getvalue() == ""
 
 
 def test_compile_notice_is_given_once_and_only_when_compiling(monkeypatch):
     import io
 
-    monkeypatch.setattr(runner, "warm_up", lambda: None)
+    monkeypatch.setattr(pool, "warm_up", lambda: None)
     for cached, expected in ((True, ""), (False, "compiling the numba kernels")):
-        monkeypatch.setattr(runner, "_kernels_ready", False)
-        monkeypatch.setattr(runner, "kernels_cached", lambda cached=cached: cached)
+        monkeypatch.setattr(pool, "_kernels_ready", False)
+        monkeypatch.setattr(pool, "kernels_cached", lambda cached=cached: cached)
         stream = io.StringIO()
-        runner.prepare_kernels(stream)
-        runner.prepare_kernels(stream)  # once per process
+        pool.prepare_kernels(stream)
+        pool.prepare_kernels(stream)  # once per process
         text = stream.getvalue()
         assert (expected in text) if expected else text == ""
         if expected:
@@ -473,19 +486,19 @@ def test_kernels_cached_follows_numba_index_files(tmp_path, monkeypatch):
     source = package / "kern.py"
     source.write_text("from numba import njit\n\n@njit(cache=True)\ndef f(x):\n    return x\n")
     (package / "plain.py").write_text('"""Mentions @njit and cache=True in prose only."""\n')
-    monkeypatch.setattr(runner, "__file__", str(package / "runner.py"))
-    assert not runner.kernels_cached()
+    monkeypatch.setattr(pool, "__file__", str(package / "pool.py"))
+    assert not pool.kernels_cached()
     index = package / "__pycache__" / "kern.f-3.py311.nbi"
     index.write_bytes(b"")
     os.utime(index, (source.stat().st_mtime + 10,) * 2)
-    assert runner.kernels_cached()
+    assert pool.kernels_cached()
     os.utime(source, (source.stat().st_mtime + 20,) * 2)  # the source changed after compiling
-    assert not runner.kernels_cached()
+    assert not pool.kernels_cached()
 
 
 ORPHAN_SCRIPT = """
 import os, sys, time
-import nrmlc.workbench.runner as runner
+import nrmlc.workbench.run_cache as run_cache
 
 
 class Sleeper:
@@ -514,7 +527,7 @@ class Sleeper:
 
 
 if __name__ == "__main__":
-    runner.RunCache(sys.argv[1]).run([Sleeper(0), Sleeper(1)], jobs=2, progress=False)
+    run_cache.RunCache(sys.argv[1]).run([Sleeper(0), Sleeper(1)], jobs=2, progress=False)
 """
 
 
@@ -554,7 +567,6 @@ def test_pool_workers_end_when_their_parent_is_killed(tmp_path):
 
 def test_negative_shares_are_recorded_only_on_request_and_keyed_apart():
     from nrmlc.data import SyntheticSequence, SyntheticSpec
-    from nrmlc.workbench.runner import RunSpec
 
     sequence = SyntheticSequence(SyntheticSpec(name="shares", seed=0, n_frames=4))
     plain = RunSpec(sequence, TrackerParams(n_particles=20), n_frames=4)
@@ -572,10 +584,10 @@ def test_every_job_class_follows_the_one_job_contract():
     from experiments.internals import Collection
     from experiments.peers import LiveSpec
     from experiments.paper.scale_likelihood import ScaleProfile
-    from nrmlc.workbench.runner import CachedJob, Job
+    from nrmlc.workbench.jobs import CachedJob, Job
 
     for cls in (RunSpec, OracleGateRun, Collection, LiveSpec, ScaleProfile):
         assert issubclass(cls, CachedJob) and isinstance(cls.folder, str)
     sequence = SyntheticSequence(SyntheticSpec(name="job", seed=0, n_frames=6))
     job = ScaleProfile(sequence, TrackerParams(), 0, max_frames=4)
-    assert isinstance(job, Job) and job.frames() == 4 and job.key("v") == runner.description_key(job.description("v"))
+    assert isinstance(job, Job) and job.frames() == 4 and job.key("v") == jobs.description_key(job.description("v"))

@@ -10,7 +10,7 @@ from experiments.paper import scale_likelihood
 from experiments.grid import Context, run_script
 from experiments.paper.scale_likelihood import SCALES, ScaleProfile, profile_measures
 from nrmlc.data import SyntheticSequence, SyntheticSpec, synthetic_suite
-from nrmlc.workbench.runner import RunCache
+from nrmlc.workbench.run_cache import RunCache
 from nrmlc.tracker import track_sequence
 from nrmlc.tracker.params import TrackerParams
 

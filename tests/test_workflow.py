@@ -14,7 +14,7 @@ import pytest
 
 from nrmlc.workbench.benchmark import parse_seeds
 from nrmlc.cli import main
-from nrmlc.workbench.compare import compare
+from nrmlc.workbench.score import compare
 from nrmlc.data import open_sequence, read_box_file
 from nrmlc.testing.scenes import write_small_suite
 from nrmlc.data.video_file import VideoFileSequence

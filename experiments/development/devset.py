@@ -39,7 +39,7 @@ from nrmlc.config import data_root_from_env
 from nrmlc.data.synthetic import SyntheticSequence
 from nrmlc.errors import NrmlcError
 from nrmlc.workbench.benchmark import parse_seeds
-from nrmlc.workbench.runner import DEFAULT_CACHE, RunCache
+from nrmlc.workbench.run_cache import DEFAULT_CACHE, RunCache
 from nrmlc.tracker.params import TrackerParams, parse_param_assignment
 
 REPO_ROOT = Path(__file__).resolve().parents[2]

@@ -35,7 +35,7 @@ from nrmlc import io
 from nrmlc.workbench.benchmark import parse_seeds
 from nrmlc.data.synthetic import SyntheticSequence
 from nrmlc.errors import NrmlcError
-from nrmlc.workbench.runner import DEFAULT_CACHE, RunCache
+from nrmlc.workbench.run_cache import DEFAULT_CACHE, RunCache
 from nrmlc.tracker.params import TrackerParams, parse_param_assignment
 
 

@@ -25,7 +25,7 @@ from experiments.grid import describe_params
 from experiments.internals import Budget, budget_for, tracker_params
 from experiments.tables import save_figure
 from nrmlc.workbench.metrics import overlaps
-from nrmlc.workbench.runner import RunSpec
+from nrmlc.workbench.jobs import RunSpec
 
 STEM = "fig1_coefficients"
 #: ``report(context, data)``: writes ``<STEM>.json``, returns the report section.

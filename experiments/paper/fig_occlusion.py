@@ -19,7 +19,7 @@ from experiments.grid import json_report, script_entry
 from experiments.grid import describe_params
 from experiments.internals import Budget, budget_for, tracker_params
 from experiments.tables import save_figure
-from nrmlc.workbench.runner import RunSpec
+from nrmlc.workbench.jobs import RunSpec
 
 STEM = "fig_occlusion"
 #: ``report(context, data)``: writes ``<STEM>.json``, returns the report section.

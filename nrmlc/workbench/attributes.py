@@ -137,7 +137,7 @@ def attribute_scores(comparison, attributes: dict) -> list[AttributeScores]:
 
     Parameters
     ----------
-    comparison : nrmlc.workbench.compare.Comparison
+    comparison : nrmlc.workbench.score.Comparison
     attributes : dict of sequence name -> set of codes (:func:`read_attributes`)
 
     Returns
@@ -182,7 +182,7 @@ def format_attribute_table(comparison, scores: list[AttributeScores]) -> str:
 
 
 def attribute_csv_rows(scores: list[AttributeScores]) -> list[dict]:
-    """Rows for :func:`nrmlc.workbench.compare.write_csv`: sequence ``ALL``, ``attribute`` and ``sequences`` set."""
+    """Rows for :func:`nrmlc.workbench.report.write_csv`: sequence ``ALL``, ``attribute`` and ``sequences`` set."""
     rows = []
     for entry in scores:
         for tracker, auc in entry.success_auc.items():

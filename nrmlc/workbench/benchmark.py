@@ -19,7 +19,7 @@ Resuming: a run is finished when its entry is in ``benchmark.json`` and its
 result file holds one box per tracked frame; a rerun skips it, whatever
 changed in the code since (an entry whose file is missing or of another
 length is run again, with a warning naming the file).
-The runs themselves go through :class:`nrmlc.workbench.runner.RunCache` (``--cache``,
+The runs themselves go through :class:`nrmlc.workbench.run_cache.RunCache` (``--cache``,
 default ``.cache/runs``), so a run interrupted before its file was written
 is loaded from the cache, not recomputed. All files are written atomically.
 
@@ -226,7 +226,7 @@ def run_benchmark(data_root, out, params=None, seeds=(0,), sequences: list[str] 
         Worker processes (default: all cores).
     executor : concurrent.futures.Executor, optional
         Where to run (e.g. a Dask client's ``get_executor()``).
-    cache : nrmlc.workbench.runner.RunCache, optional
+    cache : nrmlc.workbench.run_cache.RunCache, optional
         Run cache (default: ``.cache/runs``).
     progress : bool
         Progress bar on stderr.
@@ -239,11 +239,13 @@ def run_benchmark(data_root, out, params=None, seeds=(0,), sequences: list[str] 
         What ``summary.json`` holds.
     """
     from nrmlc.data import read_box_file
-    from nrmlc.workbench.runner import RunCache, RunSpec, code_version, frames_tracked
+    from nrmlc.workbench.jobs import RunSpec, frames_tracked
+    from nrmlc.workbench.run_cache import RunCache
+    from nrmlc.workbench.version import code_version
     from nrmlc.tracker.params import TrackerParams
 
     log = log or (lambda line: print(line, file=sys.stderr, flush=True))
-    from nrmlc.workbench.runner import _count
+    from nrmlc.workbench.jobs import _count
 
     params = TrackerParams() if params is None else params
     if not isinstance(params, TrackerParams):
@@ -439,7 +441,7 @@ def add_benchmark_command(commands) -> None:
 
 
 def _cmd_benchmark(args: argparse.Namespace) -> int:
-    from nrmlc.workbench.runner import RunCache
+    from nrmlc.workbench.run_cache import RunCache
     from nrmlc.tracker.params import TrackerParams, parse_param_assignment
 
     base = TrackerParams.preset(args.preset) if args.preset else TrackerParams()

@@ -38,7 +38,7 @@ Which file is a sequence's
     ``<Seq>`` is matched without regard to case and to the benchmark's spellings of a target
     number (:func:`sequence_key`): ``Skating2.1``, ``Skating2_1`` and ``Skating2-1`` are one
     sequence, ``dudek`` is ``Dudek``. The first box must be the sequence's box on the file's
-    first frame (IoU >= 0.5, as :func:`nrmlc.workbench.compare.find_result`), else the file is not used:
+    first frame (IoU >= 0.5, as :func:`nrmlc.workbench.find.find_result`), else the file is not used:
     results on another version of the sequence. Two files of one tracker that name the same
     sequence (``car4_X.mat``, ``Car4_X.mat``) are refused.
 """
@@ -383,7 +383,7 @@ def find_otb_result(folder, tracker: str, sequence, max_frames: int | None = Non
     max_frames : int, optional
         Only the first frames (the array is cut to them).
     name_map : dict, optional
-        {file stem (lower case): sequence name (lower case)}, as :func:`nrmlc.workbench.compare.parse_name_map`.
+        {file stem (lower case): sequence name (lower case)}, as :func:`nrmlc.workbench.find.parse_name_map`.
 
     Returns
     -------

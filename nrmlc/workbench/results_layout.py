@@ -1,5 +1,5 @@
 """Sequence selection and the layout of a benchmark results folder: what ``nrmlc benchmark``
-writes (:mod:`nrmlc.workbench.benchmark`) and ``nrmlc evaluate`` reads (:mod:`nrmlc.workbench.compare`)::
+writes (:mod:`nrmlc.workbench.benchmark`) and ``nrmlc evaluate`` reads (:mod:`nrmlc.workbench.find`)::
 
     OUT/<Seq>.txt                the primary seed's boxes (what the OTB toolkits read)
     OUT/seeds/<seed>/<Seq>.txt   every other seed
