@@ -13,15 +13,17 @@ Steps:
 
 1. build the :class:`~experiments.grid.Context` (data, seeds, run cache);
 2. collect the jobs of every script (``runs(context)``: tracking runs, live
-   OpenCV runs, recorded internals), print the size of the grid per script
-   (``--dry-run`` stops here), and compute the missing ones in one pool of
+   OpenCV runs, recorded internals), print the size of the grid per script and
+   an estimate of its time from a speed measured on this machine just then
+   (:func:`measure_speed`; ``--dry-run`` stops here), and compute the missing ones in one pool of
    warmed-up workers (cached runs are skipped, so a rerun or an interrupted
    run costs only what is missing);
 3. run each script (:func:`experiments.grid.run_script`: ``collect``, ``plot``,
    ``report``) in the paper's order, from the cached results; one that fails
    is reported (traceback on stderr, a note in the report) and the others
    still run;
-4. write ``REPORT.md``; exit non-zero if any script failed.
+4. write ``REPORT.md``, print one closing line (what was written, where, how long it took);
+   exit non-zero if any script failed.
 """
 from __future__ import annotations
 
@@ -31,6 +33,7 @@ import os
 import sys
 import time
 import traceback
+from pathlib import Path
 
 from experiments import report
 from experiments.grid import add_arguments, context_from_namespace, run_script
@@ -55,12 +58,12 @@ SCRIPTS = (
     "experiments.paper.scale_likelihood",
 )
 
-#: Tracking speed per worker for the time estimate: measured on this 2-core machine, the
-#: real-data grid of 2026-11-30 (code 4a599dc3d4876f9e) ran 591,893 600-particle frame
-#: equivalents in 50.8 min on 2 single-threaded workers, ~97 per worker.
-ESTIMATE_FPS_PER_WORKER = 95.0
-#: Rough speed of OpenCV's MIL (frames per second per worker).
-ESTIMATE_PEER_FPS = 15.0
+#: Frames timed by :func:`measure_speed` (after one untimed update): a second or two at the
+#: speeds seen on 2-core machines, 30-100 frames/s per worker.
+SPEED_FRAMES = 40
+#: Work of one frame of OpenCV's MIL in 600-particle NRMLC frames: it ran at about 15 frames/s
+#: per worker where NRMLC ran at about 95.
+PEER_FRAME_COST = 95.0 / 15.0
 
 
 def _short(module: str) -> str:
@@ -99,11 +102,11 @@ def job_cost(job) -> float:
     slower)."""
     params = getattr(job, "params", None)
     if params is None:  # an OpenCV peer
-        return job.frames() * ESTIMATE_FPS_PER_WORKER / ESTIMATE_PEER_FPS
+        return job.frames() * PEER_FRAME_COST
     factor = params.n_particles / 600.0
     if getattr(params, "generative_weight", 0) > 0:
-        # Measured (docs/findings/round-13-generative-term.md and round-14-generative-term-adopted.md):
-        # SCM's full grid (150 candidates x 196 local patches) adds 2.6 frames' work, 20 x 49 adds 0.18.
+        # Measured when the generative term was adopted: SCM's full grid (150 candidates x 196 local
+        # patches) adds 2.6 frames' work, 20 x 49 adds 0.18.
         n_local = ((params.patch_size - LOCAL_SIZE) // params.generative_step + 1) ** 2
         factor += 0.1 + 2.5 * params.generative_candidates * n_local / (150 * 196)
     if params.coding == "constrained":
@@ -111,8 +114,40 @@ def job_cost(job) -> float:
     return job.frames() * factor
 
 
-def grid_summary(context, jobs_by_script: dict) -> tuple[list, dict, str]:
-    """The union of the jobs, counts, and a printable summary (per script; shared jobs counted once)."""
+def measure_speed(n_frames: int = SPEED_FRAMES) -> float:
+    """This machine's speed now, in the unit of :func:`job_cost`: 600-particle NRMLC frames
+    (no generative term) per second in one thread, as a worker of the grid runs them.
+
+    A synthetic run in this process, timed from its second update to its last (the kernels'
+    loading, the initial templates and the first update left out; the frames' rendering counted,
+    as a worker's decoding is). A few seconds; the first run after an install compiles the
+    kernels first, which the grid would do anyway.
+    """
+    import time as clock
+
+    import numba
+
+    from nrmlc.config import set_threads
+    from nrmlc.data import SyntheticSequence, SyntheticSpec
+    from nrmlc.tracker.loop import track_sequence
+    from nrmlc.tracker.params import TrackerParams
+
+    sequence = SyntheticSequence(SyntheticSpec(name="speed", seed=0, n_frames=n_frames + 2))
+    ticks: list[float] = []
+    threads = numba.get_num_threads()
+    set_threads(1)
+    try:
+        track_sequence(sequence, TrackerParams(n_particles=600, generative_weight=0.0), n_frames=n_frames + 2,
+                       on_frame=lambda index, tracker, frame: ticks.append(clock.perf_counter()) if index else None)
+    finally:
+        set_threads(threads)
+    return (len(ticks) - 1) / (ticks[-1] - ticks[0])
+
+
+def grid_summary(context, jobs_by_script: dict, measure=measure_speed) -> tuple[list, dict, str]:
+    """The union of the jobs, counts, and a printable summary (per script; shared jobs counted once),
+    with an estimate of the time from ``measure()`` (frames/s per worker, see :func:`measure_speed`),
+    called only when something is to be computed."""
     cache = context.cache
     unique: dict = {}
     lines = []
@@ -132,17 +167,60 @@ def grid_summary(context, jobs_by_script: dict) -> tuple[list, dict, str]:
     missing_frames = sum(j.frames() for j in nrmlc if cache.path(j) not in present)
     peer_frames = sum(j.frames() for j in peers_)
     peer_missing = sum(j.frames() for j in peers_ if cache.path(j) not in present)
-    workers = context.jobs or os.cpu_count() or 1
     cost = sum(job_cost(j) for j in union if cache.path(j) not in present)
-    minutes = cost / ESTIMATE_FPS_PER_WORKER / min(workers, 2 * (os.cpu_count() or 1)) / 60
     text = "\n".join([f"[run_all] grid: {len(nrmlc)} NRMLC runs, {frames} frames ({frames - missing_frames} cached, "
                       f"{missing_frames} to compute); {len(peers_)} OpenCV runs, {peer_frames} frames "
-                      f"({peer_missing} to compute). Estimate: ~{minutes:.0f} min on {workers} worker(s) "
-                      f"(~{cost:.0f} 600-particle frame equivalents at ~{ESTIMATE_FPS_PER_WORKER:.0f} fps each)"]
+                      f"({peer_missing} to compute). {estimate_text(context, cost, measure)}"]
                      + lines)
     counts = {"runs": len(nrmlc), "frames": frames, "missing_frames": missing_frames,
               "peer_runs": len(peers_), "peer_frames": peer_frames}
     return union, counts, text
+
+
+def estimate_text(context, cost: float, measure=measure_speed) -> str:
+    """``Estimate: ~N min on W worker(s) (...)``, the speed measured by ``measure()`` now."""
+    if cost <= 0:
+        return "Estimate: nothing to compute, every run is cached."
+    print(f"[run_all] measuring this machine's speed ({SPEED_FRAMES} frames, one thread) ...", file=sys.stderr,
+          flush=True)
+    try:
+        fps = float(measure())
+    except Exception as exc:  # the grid's own runs will say what is wrong, with the job named
+        return f"Estimate: none (the speed measurement failed: {exc!r})."
+    cores = os.cpu_count() or 1
+    workers = context.jobs or cores
+    minutes = cost / fps / min(workers, cores) / 60
+    where = ("measured just now on this machine; the cluster's may differ" if context.executor is not None
+             else "measured just now on this machine")
+    return (f"Estimate: ~{minutes:.0f} min on {workers} worker(s) (~{cost:.0f} 600-particle frame equivalents "
+            f"at {fps:.0f} frames/s per worker, {where}).")
+
+
+def written_since(folder, since: float) -> dict[str, int]:
+    """How many ``.png``, ``.csv`` and ``.json`` files in ``folder`` were written at or after ``since``
+    (``time.time()``)."""
+    counts = {".png": 0, ".csv": 0, ".json": 0}
+    for path in Path(folder).iterdir() if Path(folder).is_dir() else ():
+        if path.suffix in counts and path.is_file() and path.stat().st_mtime >= since:
+            counts[path.suffix] += 1
+    return counts
+
+
+def closing_line(folder, counts: dict[str, int], report_name: str, seconds: float, failures: list) -> str:
+    """``[run_all] wrote 14 figures, 8 tables, 15 JSON files and REPORT.md to out/figures/ in 3.1 min``."""
+    try:
+        shown = os.path.relpath(folder)
+    except ValueError:  # another drive
+        shown = str(folder)
+    if shown.startswith(".."):
+        shown = str(folder)
+    plural = lambda n, word: f"{n} {word}{'' if n == 1 else 's'}"
+    line = (f"[run_all] wrote {plural(counts['.png'], 'figure')}, {plural(counts['.csv'], 'table')} (CSV), "
+            f"{plural(counts['.json'], 'JSON file')} and {report_name} to {shown.rstrip(os.sep)}{os.sep} "
+            f"in {f'{seconds / 60:.1f} min' if seconds >= 60 else f'{seconds:.0f} s'}")
+    if failures:
+        line += f"; {plural(len(failures), 'script')} failed: {', '.join(name for name, _ in failures)}"
+    return line
 
 
 def run_grid(context, union: list) -> None:
@@ -185,8 +263,9 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--only", default=None, metavar="SCRIPT[,SCRIPT]",
                         help="run only these scripts (short names: " + ", ".join(_short(n) for n in SCRIPTS) + ")")
     parser.add_argument("--dry-run", action="store_true",
-                        help="print the grid (runs and frames per script, how many are cached, estimated time) "
-                             "and stop without tracking")
+                        help="print the grid (runs and frames per script, how many are cached, the time it "
+                             "will take from a few seconds' measurement of this machine's speed) and stop "
+                             "without running it")
     return parser
 
 
@@ -208,6 +287,7 @@ def main(argv=None) -> int:
 
 def _main(argv=None) -> int:
     start = time.perf_counter()
+    started_at = time.time() - 1.0  # file times: a second's slack for coarse clocks
     parser = build_parser()
     args = parser.parse_args(argv)
     selected = None if args.only is None else {s.strip() for s in args.only.split(",") if s.strip()}
@@ -256,14 +336,12 @@ def _main(argv=None) -> int:
         for name, message in failures:
             notes.append(f"{name}: FAILED ({message})")
         path = report.write_report(context, sections, notes, time.perf_counter() - start, counts)
-        print(f"[run_all] wrote {path}", file=sys.stderr)
     finally:
         if client is not None:
             client.close()
-    if failures:
-        print(f"[run_all] {len(failures)} script(s) failed: {', '.join(n for n, _ in failures)}", file=sys.stderr)
-        return 1
-    return 0
+    print(closing_line(path.parent, written_since(path.parent, started_at), path.name, time.perf_counter() - start,
+                       failures), file=sys.stderr)
+    return 1 if failures else 0
 
 
 if __name__ == "__main__":

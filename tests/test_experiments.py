@@ -6,6 +6,7 @@ synthetic sequence, its first 25 frames, one seed, 100 particles, one worker.
 from __future__ import annotations
 
 import json
+import re
 import sys
 import types
 
@@ -159,7 +160,7 @@ def test_oracle_gate_rule_column_is_the_table_run(grid):
     assert all(0 <= row[gate] <= 1 and 0 <= row[f"{gate} updates"] <= 100 for gate in data["gates"])
 
 
-def test_missing_and_failing_scripts(tmp_path, monkeypatch):
+def test_missing_and_failing_scripts(tmp_path, monkeypatch, capsys):
     """A script that does not import or fails is reported, the others still run, exit 1."""
     good = types.ModuleType("experiments._test_good")
     good.STEM = "good"
@@ -181,6 +182,9 @@ def test_missing_and_failing_scripts(tmp_path, monkeypatch):
     status = run_all.main(["--out", str(tmp_path / "f"), "--cache", str(tmp_path / "c"), "--jobs", "1",
                            "--synthetic-sequences", "1", "--max-frames", "5"])
     assert status == 1
+    closing = capsys.readouterr().err.strip().splitlines()[-1]
+    assert closing.startswith("[run_all] wrote 0 figures, 0 tables (CSV), 0 JSON files and REPORT.md to ")
+    assert closing.endswith(" s; 2 scripts failed: _test_absent, _test_bad")
     report = (tmp_path / "f" / "REPORT.md").read_text()
     assert "_test_absent: FAILED (import failed" in report
     assert "_test_bad: FAILED" in report and "boom" in report
@@ -205,8 +209,79 @@ def test_dry_run_prints_the_grid_and_tracks_nothing(tmp_path, capsys, monkeypatc
                            "--synthetic-sequences", "1", "--max-frames", "10", "--only", "ablations"])
     err = capsys.readouterr().err
     assert status == 0 and "NRMLC runs" in err and " frames (0 cached, " in err and "Estimate" in err
+    assert re.search(r"Estimate: ~\d+ min on \d+ worker\(s\) .* at \d+ frames/s per worker, measured just now", err)
     assert "ablations: " in err
     assert not (tmp_path / "c").exists() and not (tmp_path / "f").exists()
+    assert "[run_all] wrote" not in err  # nothing written, no closing line
+
+
+def _estimate_minutes(text: str) -> int:
+    return int(re.search(r"Estimate: ~(\d+) min", text).group(1))
+
+
+def test_the_estimate_follows_the_measured_speed(tmp_path, monkeypatch):
+    monkeypatch.delenv("NRMLC_DATA", raising=False)
+    context = context_from_args(["--cache", str(tmp_path / "c"), "--synthetic-sequences", "1", "--jobs", "1"])
+    from experiments.paper import fig4_lambda_sweep as fig4
+
+    jobs = {"fig4_lambda_sweep": fig4.runs(context)}
+    cost = sum(run_all.job_cost(job) for job in jobs["fig4_lambda_sweep"])
+    slow = run_all.grid_summary(context, jobs, measure=lambda: 10.0)[2]
+    fast = run_all.grid_summary(context, jobs, measure=lambda: 100.0)[2]
+    assert _estimate_minutes(slow) == round(cost / 10.0 / 60)
+    assert _estimate_minutes(fast) == round(cost / 100.0 / 60)
+    assert "at 10 frames/s per worker, measured just now on this machine" in slow
+    assert "ESTIMATE_FPS_PER_WORKER" not in vars(run_all)  # no assumed speed left
+
+
+def test_nothing_to_compute_measures_nothing(tmp_path, monkeypatch):
+    monkeypatch.delenv("NRMLC_DATA", raising=False)
+    context = context_from_args(["--cache", str(tmp_path / "c"), "--synthetic-sequences", "1"])
+
+    def measure():
+        raise AssertionError("measured although nothing is to be computed")
+
+    assert "nothing to compute" in run_all.grid_summary(context, {"none": []}, measure=measure)[2]
+
+
+def test_a_failed_measurement_leaves_the_run_going(tmp_path, monkeypatch):
+    monkeypatch.delenv("NRMLC_DATA", raising=False)
+    context = context_from_args(["--cache", str(tmp_path / "c"), "--synthetic-sequences", "1"])
+    from experiments.paper import fig4_lambda_sweep as fig4
+
+    def measure():
+        raise RuntimeError("no kernels")
+
+    text = run_all.grid_summary(context, {"fig4": fig4.runs(context)}, measure=measure)[2]
+    assert "Estimate: none (the speed measurement failed: RuntimeError('no kernels'))" in text
+
+
+def test_measure_speed_is_a_few_seconds_and_a_speed():
+    import time
+
+    start = time.perf_counter()
+    fps = run_all.measure_speed(n_frames=8)
+    assert 0 < fps < 10_000 and np.isfinite(fps)
+    assert time.perf_counter() - start < 60  # kernels loaded by the tests before, or compiled once
+
+
+def test_closing_line_says_what_was_written_where_and_how_long(tmp_path, monkeypatch):
+    import os
+    import time
+
+    since = time.time() - 1.0
+    for name in ("a.png", "b.png", "a.csv", "a.json", "b.json", "c.json", "notes.txt"):
+        (tmp_path / name).write_text("x")
+    old = tmp_path / "old.png"
+    old.write_text("x")
+    os.utime(old, (since - 100, since - 100))
+    counts = run_all.written_since(tmp_path, since)
+    assert counts == {".png": 2, ".csv": 1, ".json": 3}
+    monkeypatch.chdir(tmp_path.parent)
+    line = run_all.closing_line(tmp_path, counts, "REPORT.md", 186.0, [])
+    assert line == f"[run_all] wrote 2 figures, 1 table (CSV), 3 JSON files and REPORT.md to {tmp_path.name}/ in 3.1 min"
+    failed = run_all.closing_line(tmp_path, counts, "REPORT.md", 6.0, [("fig4", "boom"), ("fig3", "bang")])
+    assert failed.endswith("in 6 s; 2 scripts failed: fig4, fig3")
 
 
 def test_sequence_subset(tmp_path, monkeypatch):
@@ -399,3 +474,91 @@ def test_fig4_on_synthetic_data_leaves_out_the_papers_references(tmp_path, monke
         fig4.plot({"points": points, "sequences": ["s"], "seeds": [0], "synthetic": synthetic}, synthetic)
     assert not any(label.startswith("paper") for label in labels[True])
     assert sum(label.startswith("paper") for label in labels[False]) == 2
+
+
+def _fig4_points(plain: float, green: float) -> list[dict]:
+    points = [{"coding": "regularized", "lam": lam, "overlap": green if lam == 0 else 0.5, "overlap_std": 0.01}
+              for lam in (0.0, 0.01, 0.1, 0.5, 0.8, 1.0, 5.0, 10.0)]
+    return points + [{"coding": "plain", "lam": 0.0, "overlap": plain, "overlap_std": 0.01}]
+
+
+def test_fig4_draws_the_unregularised_line_visibly_over_the_other(tmp_path, monkeypatch):
+    """λ = β = 0 (red) and λ = 0, β = 0.1 (green) a hair apart: red on top, dashed, with markers."""
+    from experiments.paper import fig4_lambda_sweep as fig4
+
+    drawn = {}
+
+    def keep(fig, path, **kwargs):
+        fig.canvas.draw()
+        drawn["fig"] = fig
+
+    monkeypatch.setattr(fig4, "save_figure", keep)
+    fig4.plot({"points": _fig4_points(0.549, 0.547), "sequences": ["s"], "seeds": [0, 1], "synthetic": True},
+              tmp_path / "f.png")
+    ax = drawn["fig"].axes[0]
+    lines = {line.get_label(): line for line in ax.get_lines()}
+    red = next(line for label, line in lines.items() if label.startswith("λ = β = 0"))
+    green = next(line for label, line in lines.items() if label.startswith("λ = 0, β"))
+    assert red.get_zorder() > green.get_zorder()
+    assert red.get_marker() not in (None, "", "None") and red.get_linestyle() not in ("-", "solid")
+    assert green.get_linewidth() > 2 * red.get_linewidth()  # the green shows around the red
+
+
+def test_fig4_tick_labels_do_not_overlap(tmp_path, monkeypatch):
+    from experiments.paper import fig4_lambda_sweep as fig4
+
+    drawn = {}
+
+    def keep(fig, path, **kwargs):
+        fig.tight_layout()
+        fig.canvas.draw()
+        drawn["fig"] = fig
+
+    monkeypatch.setattr(fig4, "save_figure", keep)
+    fig4.plot({"points": _fig4_points(0.5, 0.5), "sequences": ["s"], "seeds": [0], "synthetic": True},
+              tmp_path / "f.png")
+    fig = drawn["fig"]
+    renderer = fig.canvas.get_renderer()
+    boxes = [label.get_window_extent(renderer) for label in fig.axes[0].get_xticklabels() if label.get_text()]
+    boxes.sort(key=lambda box: box.x0)
+    assert len(boxes) == 8
+    space = fig.dpi * 3 / 72  # 3 points, more than a word space at the labels size: no two read as one
+    for left, right in zip(boxes, boxes[1:]):
+        assert right.x0 - left.x1 > space, "tick labels touch"
+
+
+def test_fig3_row_labels_keep_clear_of_the_row_above(tmp_path, monkeypatch):
+    """Rows of frames of other shapes (the real sequences'): every row's label is closer to its own
+    frames than to the row above, with at least one and a half label heights of space above it."""
+    from experiments.paper import fig3_qualitative as fig3
+
+    class Frames:
+        def __init__(self, name, shape):
+            self.name, self.shape = name, shape
+
+        def color_frame(self, index):
+            return np.full(self.shape + (3,), 128, np.uint8)
+
+    shapes = {"Car4": (240, 360), "CarScale": (272, 640), "Occlusion2": (480, 640), "ClifBar": (240, 320),
+              "Occlusion1": (289, 352), "Portrait": (480, 360)}
+    rows = [{"sequence": Frames(name, shape), "frames": [1, 2, 3, 4],
+             "boxes": {"Ground truth": {f: np.array([10.0, 10.0, 50.0, 40.0]) for f in range(5)}}}
+            for name, shape in shapes.items()]
+    drawn = {}
+
+    def keep(fig, path, rect=None, **kwargs):
+        fig.tight_layout(rect=rect)  # what save_figure does
+        fig.canvas.draw()
+        drawn["fig"] = fig
+
+    monkeypatch.setattr(fig3, "save_figure", keep)
+    fig3.plot({"rows": rows}, tmp_path / "f.png")
+    fig = drawn["fig"]
+    renderer = fig.canvas.get_renderer()
+    axes = np.array(fig.axes).reshape(len(rows), 4)
+    for r in range(1, len(rows)):
+        label = next(title for title in (axes[r, 0].title, axes[r, 0]._left_title) if title.get_text())
+        box = label.get_window_extent(renderer)
+        above = min(ax.get_images()[0].get_window_extent(renderer).y0 for ax in axes[r - 1]) - box.y1
+        below = box.y0 - max(ax.get_images()[0].get_window_extent(renderer).y1 for ax in axes[r])
+        assert above > max(below, 1.5 * box.height), f"{label.get_text()}: {above:.0f} px below the row above"

@@ -85,7 +85,15 @@ def plot(data: dict, path) -> None:
 
     rows = data["rows"]
     n_cols = max(len(r["frames"]) for r in rows)
-    fig, axes = plt.subplots(len(rows), n_cols, figsize=(2.9 * n_cols, 2.3 * len(rows) + 0.6), squeeze=False)
+    images = [[row["sequence"].color_frame(frame)[:, :, ::-1] for frame in row["frames"]] for row in rows]
+    # Each row as tall as its frames at the column's width: an image then fills its panel, and the
+    # layout's room for the row label above it is room above the image (a row of frames narrower
+    # than the panel left the label of the row below touching it).
+    aspects = [max(image.shape[0] / image.shape[1] for image in row_images) for row_images in images]
+    panel_width, label_height, legend_height = 2.9, 0.6, 0.6
+    fig, axes = plt.subplots(len(rows), n_cols, squeeze=False, gridspec_kw={"height_ratios": aspects},
+                             figsize=(panel_width * n_cols,
+                                      sum(panel_width * aspect + label_height for aspect in aspects) + legend_height))
     used = []
     for r, row in enumerate(rows):
         sequence = row["sequence"]
@@ -95,7 +103,7 @@ def plot(data: dict, path) -> None:
             if c >= len(row["frames"]):
                 continue
             frame = row["frames"][c]
-            ax.imshow(sequence.color_frame(frame)[:, :, ::-1], interpolation="bilinear")
+            ax.imshow(images[r][c], interpolation="bilinear")
             for name, boxes in row["boxes"].items():
                 box = boxes[frame]
                 if not np.isfinite(box).all():
@@ -119,7 +127,7 @@ def plot(data: dict, path) -> None:
     fig.legend(handles, used, loc="upper center", ncol=min(len(used), 6), fontsize=13, frameon=False,
                facecolor="black")
     # dpi 80: frame numbers and legend readable at full size (about 930 px wide), the file under 2 MiB.
-    save_figure(fig, path, dpi=80, rect=(0, 0, 1, 1 - 0.6 / fig.get_figheight()))
+    save_figure(fig, path, dpi=80, rect=(0, 0, 1, 1 - legend_height / fig.get_figheight()))
 
 
 def report(context, data: dict) -> dict:
