@@ -88,9 +88,11 @@ def _cmd_params(args: argparse.Namespace) -> int:
     if not hasattr(tracker_params, "describe_parameters"):
         raise NrmlcError("this version of nrmlc.tracker.params has no describe_parameters(); "
                          "the parameters are documented in TrackerParams' docstring")
+    import shutil
+
     for line in format_parameter_table(tracker_params.describe_parameters(args.preset),
                                        tracker_params.describe_parameters("default") if args.preset != "default"
-                                       else None, args.preset):
+                                       else None, args.preset, width=shutil.get_terminal_size().columns):
         print(line)
     return 0
 
@@ -107,7 +109,7 @@ def parameter_value_text(value) -> str:
 
 
 def format_parameter_table(rows: list[dict], reference: list[dict] | None = None,
-                           preset: str = "default") -> list[str]:
+                           preset: str = "default", width: int | None = None) -> list[str]:
     """The lines of ``nrmlc params``: one block per group, columns aligned across all blocks.
 
     Parameters
@@ -119,7 +121,12 @@ def format_parameter_table(rows: list[dict], reference: list[dict] | None = None
         The 'default' preset's entries: a value that differs from its is marked ``*``.
     preset : str
         The preset the values are from, for the header.
+    width : int, optional
+        Wrap the meanings to lines of this many characters (at least 30 characters of meaning
+        per line), continued under the meaning column; None: one line per parameter.
     """
+    import textwrap
+
     reference_values = {row["name"]: row["default"] for row in reference or []}
     changed = {row["name"] for row in rows
                if row["name"] in reference_values and reference_values[row["name"]] != row["default"]}
@@ -132,11 +139,14 @@ def format_parameter_table(rows: list[dict], reference: list[dict] | None = None
     for row, cell in zip(rows, cells):
         groups.setdefault(str(row["group"]), []).append(cell)
     header = f"  {'name':{widths[0]}}  {value_title:{widths[1]}}  {'range':{widths[2]}}  meaning"
+    indent = len(header) - len("meaning")
     lines = [f"Tracker parameters, preset '{preset}' (change one with --param NAME=VALUE):", "", header]
     for group, group_cells in groups.items():
         lines += ["", f"{group}:"]
-        lines += [f"  {name:{widths[0]}}  {value:{widths[1]}}  {value_range:{widths[2]}}  {meaning}"
-                  for name, value, value_range, meaning in group_cells]
+        for name, value, value_range, meaning in group_cells:
+            meaning_lines = (textwrap.wrap(meaning, max(30, width - indent)) or [""]) if width else [meaning]
+            lines.append(f"  {name:{widths[0]}}  {value:{widths[1]}}  {value_range:{widths[2]}}  {meaning_lines[0]}")
+            lines += [" " * indent + more for more in meaning_lines[1:]]
     if changed:
         lines += ["", f"* differs from the 'default' preset ({len(changed)} of {len(rows)} parameters)"]
     return lines

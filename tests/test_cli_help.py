@@ -105,7 +105,8 @@ def stand_in(monkeypatch):
     monkeypatch.setattr(tracker_params, "describe_parameters", _stand_in, raising=False)
 
 
-def test_params_prints_an_aligned_table_grouped_by_group(stand_in, capsys):
+def test_params_prints_an_aligned_table_grouped_by_group(stand_in, capsys, monkeypatch):
+    monkeypatch.setenv("COLUMNS", "1000")  # a wide terminal: one line per parameter
     assert cli.main(["params"]) == 0
     out = capsys.readouterr().out
     lines = out.splitlines()
@@ -148,3 +149,15 @@ def test_params_lists_every_tracker_parameter(capsys):
     out = capsys.readouterr().out
     listed = {line.split()[0] for line in out.splitlines() if line.startswith("  ")}
     assert {field.name for field in dataclasses.fields(tracker_params.TrackerParams)} <= listed | {"name"}
+
+
+def test_params_wraps_long_meanings_under_their_column():
+    rows = _stand_in()
+    rows[0] = dict(rows[0], meaning="particles per frame, " * 8)
+    lines = cli.format_parameter_table(rows, width=100)
+    start = lines[2].index("meaning")
+    first = next(i for i, line in enumerate(lines) if line.lstrip().startswith("n_particles"))
+    assert all(len(line) <= 100 for line in lines[2:])
+    assert len([line for line in lines if line.startswith(" " * start)]) >= 3  # 168 characters in 44-wide lines
+    assert lines[first + 1].startswith(" " * start) and lines[first + 1][start] != " "
+    assert cli.format_parameter_table(rows)[first].count("particles per frame") == 8  # no width: one line
