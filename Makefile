@@ -3,7 +3,8 @@
 #   make figures DATA=path       ... on real sequences (OTB or sparse-tracker layout)
 #       options: OUT=figures (the committed real-data results), SEQUENCES=Car4,Caviar1,
 #       SEEDS=5 SWEEP_SEEDS=2 ABLATION_SEEDS=1 JOBS=2 MAX_FRAMES=N ONLY=script,script
-#       PEERS=dir (default <DATA>/../peer_results) DRY_RUN=1 (print the grid and stop)
+#       PEERS=dir (default <DATA>/../peer_results) DRY_RUN=1 (print the grid and the time it will
+#       take, from a few seconds' measurement of this machine's speed, and stop)
 #       DASK=tcp://host:8786 (run the grid on a Dask cluster; pip install -e .[cluster])
 #       PORTABLE=1 (what figures/ was made with: the AVX2 level that any x86-64 CPU with AVX2 and FMA runs,
 #       Intel or AMD: numba's haswell target, OpenBLAS's Haswell kernels, numpy's loops without AVX-512,
