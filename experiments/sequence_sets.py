@@ -47,12 +47,14 @@ DEVELOPMENT_B = ("Basketball", "BlurBody", "BlurCar2", "BlurOwl", "Car11", "Coup
                  "Jogging-1", "Jogging-2", "Liquor", "Man", "Matrix", "Singer2", "Suv", "Toy", "Walking2")
 
 #: The fewest seeds a paired gain is judged on.
-MIN_SEEDS = 3
+MIN_SEEDS = 5
+#: The least paired gain on half A worth a change's code and its cost in speed.
+MIN_GAIN = 0.01
 
 #: The rule every default is adopted by (:func:`experiments.development.devset.adopted` applies it).
-ADOPTION_RULE = (f"a change is adopted only when its paired gain over at least {MIN_SEEDS} seeds exceeds its standard "
-                 "error on half A, is positive on half B, and does not lose on the synthetic suite beyond "
-                 "its standard error")
+ADOPTION_RULE = (f"a change is adopted only when its paired gain over at least {MIN_SEEDS} fresh seeds is at least "
+                 f"{MIN_GAIN} and beyond its standard error on half A, is positive on half B, and does not lose on "
+                 "the synthetic suite beyond its standard error")
 
 #: Our name -> the paper's name, where they differ.
 PAPER_NAME_OF = {"Occlusion1": "FaceOcc1", "Occlusion2": "FaceOcc2", "Carscale": "CarScale",

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from experiments.paper.ablation_oracle_gate import OracleGateRun, OracleGateTracker
+from experiments.paper.ablation_oracle_gate import OracleGateRun, OracleGateTracker, oracle_gate_tracker
 from nrmlc.data import synthetic_suite
 from nrmlc.tracker.algorithm import NRMLCTracker
 from nrmlc.tracker.params import TrackerParams
@@ -76,6 +76,7 @@ def test_job_key_names_the_gate(sequence):
 
 
 def test_a_second_expert_learns_under_the_same_gate():
-    tracker = OracleGateTracker(np.zeros((3, 4)), "truth", seed=1, params=PARAMS)
-    assert PARAMS.second_expert != "off" and isinstance(tracker.partner, OracleGateTracker)
-    assert tracker.partner.gate == "truth" and tracker.partner.partner is None
+    tracker = oracle_gate_tracker(np.zeros((3, 4)), "truth", 1, PARAMS)
+    assert PARAMS.second_expert != "off" and all(isinstance(e, OracleGateTracker) for e in tracker.experts)
+    assert [e.gate for e in tracker.experts] == ["truth", "truth"]
+    assert tracker.experts[1].params == PARAMS.partner_params()

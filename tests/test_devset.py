@@ -64,7 +64,7 @@ def test_a_paper_sequence_is_refused_as_a_development_sequence(capsys):
     assert "not development sequences: Car4" in capsys.readouterr().err
 
 
-def _difference(mean, error, n_seeds=3):
+def _difference(mean, error, n_seeds=5):
     return {"mean": mean, "standard_error": error, "per_seed": [mean] * n_seeds}
 
 
@@ -72,11 +72,13 @@ def test_the_adoption_rule_reads_both_halves_and_the_synthetic_suite():
     gain = _difference(0.02, 0.005)
     assert devset.adopted({"A": gain, "B": _difference(0.001, 0.01)})[0]
     assert devset.adopted({"A": gain, "B": gain, "synthetic suite": _difference(-0.004, 0.005)})[0]
+    assert devset.adopted({"A": _difference(0.01, 0.005), "B": gain})[0]  # the floor itself passes
     refusals = {
-        "A: +0.004 is not beyond": {"A": _difference(0.004, 0.005), "B": gain},
+        "A: +0.012 is not beyond": {"A": _difference(0.012, 0.013), "B": gain},
+        "A: +0.009 is under the least gain worth a change, 0.01": {"A": _difference(0.009, 0.001), "B": gain},
         "B: -0.001 is not a gain": {"A": gain, "B": _difference(-0.001, 0.001)},
         "synthetic suite: -0.010": {"A": gain, "B": gain, "synthetic suite": _difference(-0.01, 0.005)},
-        "needs at least 3 seeds": {"A": _difference(0.02, 0.005, 2), "B": gain},
+        "needs at least 5 seeds": {"A": _difference(0.02, 0.005, 4), "B": gain},
         "needs both halves": {"A": gain},
     }
     for why, differences in refusals.items():
@@ -270,8 +272,8 @@ def test_fewer_seeds_than_the_rule_needs_are_warned_in_one_line(capsys):
     # "--seeds 3" is seed 3 alone, easily meant as three seeds.
     devset.warn_few_seeds("3", (3,))
     line = capsys.readouterr().err.strip()
-    assert line.count("\n") == 0 and "--seeds 3 is 1 seed(s) (3)" in line and "at least 3" in line
-    devset.warn_few_seeds("0-2", (0, 1, 2))
+    assert line.count("\n") == 0 and "--seeds 3 is 1 seed(s) (3)" in line and "at least 5" in line
+    devset.warn_few_seeds("0-4", (0, 1, 2, 3, 4))
     assert capsys.readouterr().err == ""
 
 

@@ -1,4 +1,4 @@
-"""A second expert beside the tracker (``second_expert``, NRMLCTracker._output_of_the_experts)."""
+"""The pair of experts (``second_expert``, nrmlc.tracker.experts.ExpertPair)."""
 from __future__ import annotations
 
 import numpy as np
@@ -9,14 +9,12 @@ from nrmlc.data import SyntheticSequence, SyntheticSpec
 from nrmlc.errors import ParameterError
 from nrmlc.geometry import box_iou
 from nrmlc.workbench.metrics import overlaps
-from nrmlc.tracker.algorithm import blend_experts, experts_output, held_size
+from nrmlc.tracker.experts import ExpertPair, blend_experts, experts_output, held_size, make_tracker
 from nrmlc.tracker.loop import track_sequence
-from nrmlc.tracker.params import LINEAGE_MOTION_SIGMAS
 
 # No floor: on a small synthetic target the floor makes the two motion models the same 4 px.
-# One tracker unless a test names its second expert (the default has one since round 64); the
-# output the chosen expert's box unless a test names the blend (the default's since round 76) or
-# the held size (since round 77).
+# One tracker unless a test names its second expert; the output the chosen expert's box unless a
+# test names the blend or the held size.
 SETTINGS = dict(n_particles=120, redetect_count=60, translation_floor=0.0, second_expert="off",
                 expert_blend_iou=1.0, unrecognised_size_share=0.0)
 
@@ -30,14 +28,13 @@ def _run(sequence, seed=0, **changes):
     return track_sequence(sequence, TrackerParams(**{**SETTINGS, **changes}), seed=seed)
 
 
-@pytest.mark.parametrize("kind, memory", [("lineage_noise", 0.0), ("lineage_noise", 0.95), ("every_frame", 0.95)])
+@pytest.mark.parametrize("kind, memory", [("every_frame", 0.0), ("every_frame", 0.95)])
 def test_the_output_is_the_expert_with_the_lower_average_error(sequence, kind, memory):
     """The oracle: the two experts run apart as single trackers, and the output chosen frame by
     frame from their boxes by the running average of eps_pos*."""
     pair = _run(sequence, second_expert=kind, expert_memory=memory)
     own = _run(sequence)
-    partner = _run(sequence, **(dict(update_interval=1) if kind == "every_frame" else
-                                dict(translation_noise="pixels", motion_sigmas=LINEAGE_MOTION_SIGMAS)))
+    partner = _run(sequence, update_interval=1)
     errors = np.stack([own.diagnostics["error_positive"], partner.diagnostics["error_positive"]], axis=1)
     average, chosen = np.zeros(2), [0]
     for row in errors[1:]:
@@ -65,7 +62,7 @@ def _chosen(errors, memory):
 def test_where_the_experts_agree_the_output_is_their_blend(sequence, min_iou):
     """The oracle: the two experts run apart; on each frame whose two boxes overlap at IoU >=
     min_iou, the centre is the mean of theirs and the size their geometric mean, weighted by the
-    other's eps_pos*; elsewhere the chosen one's box (round 76)."""
+    other's eps_pos*; elsewhere the chosen one's box."""
     pair = _run(sequence, second_expert="every_frame", expert_blend_iou=min_iou)
     own, partner = _run(sequence), _run(sequence, update_interval=1)
     errors = np.stack([own.diagnostics["error_positive"], partner.diagnostics["error_positive"]], axis=1)
@@ -105,14 +102,14 @@ def test_the_blend_weighs_the_better_recognised_expert_more():
 def test_where_neither_expert_recognises_the_size_moves_toward_the_last_recognised(sequence, share):
     """The oracle: the two experts run apart; on a frame where both eps_pos* reach the gate, the
     output keeps the blend's (or the choice's) centre and its log size moves ``share`` of the way
-    to that of the last output whose frame was recognised (round 77). The gate is set inside this
+    to that of the last output whose frame was recognised. The gate is set inside this
     short sequence's range of eps_pos* so that both kinds of frame occur."""
     own, partner = _run(sequence), _run(sequence, update_interval=1)
     errors = np.stack([own.diagnostics["error_positive"], partner.diagnostics["error_positive"]], axis=1)
     gate = float(np.median(errors[1:].min(axis=1)))
     pair = _run(sequence, second_expert="every_frame", expert_blend_iou=0.5, unrecognised_size_share=share,
                 unrecognised_gate=gate)
-    blend = _run(sequence, second_expert="every_frame", expert_blend_iou=0.5)  # the output before round 77
+    blend = _run(sequence, second_expert="every_frame", expert_blend_iou=0.5)  # the output without the held size
     recognised = errors.min(axis=1) < gate
     assert recognised[1:].any() and not recognised[1:].all()
     reference = np.log(blend.boxes[0, 2:])
@@ -168,28 +165,29 @@ def test_the_tracker_s_iou_is_the_metrics_one():
         assert box_iou(a, b) == pytest.approx(float(overlaps(a, b)), abs=1e-15)
 
 
-def test_off_is_one_tracker_and_the_partner_has_the_lineage_motion():
-    assert NRMLCTracker(seed=0, second_expert="off").partner is None
-    assert NRMLCTracker(seed=0).partner is not None  # the default's (round 64); the paper's has none
+def test_make_tracker_builds_one_expert_or_a_pair_and_the_partner_learns_every_frame():
+    assert type(make_tracker(second_expert="off")) is NRMLCTracker
+    pair = make_tracker()
+    assert type(pair) is ExpertPair and all(type(expert) is NRMLCTracker for expert in pair.experts)
     assert TrackerParams.paper().second_expert == "off" and TrackerParams.paper().unrecognised_size_share == 0
-    params = TrackerParams(second_expert="lineage_noise")
-    partner = params.partner_params()
-    assert partner.second_expert == "off" and partner.translation_noise == "pixels"
-    assert partner.motion_sigmas == LINEAGE_MOTION_SIGMAS
-    assert partner.replace(translation_noise="relative", motion_sigmas=params.motion_sigmas,
-                           second_expert="lineage_noise") == params
+    params = TrackerParams(second_expert="every_frame")
     assert params.estimated_bytes() == 2 * TrackerParams(second_expert="off").estimated_bytes()
-    learner = TrackerParams(second_expert="every_frame").partner_params()
-    assert learner == TrackerParams(update_interval=1, second_expert="off")
+    assert params.partner_params() == TrackerParams(update_interval=1, second_expert="off")
+    assert pair.experts[1].params == pair.params.partner_params() and pair.experts[0].params == pair.params
+    with pytest.raises(ParameterError, match="second_expert"):
+        ExpertPair(seed=0, second_expert="off")
 
 
 def test_move_to_moves_both_experts(sequence):
-    tracker = NRMLCTracker(seed=0, **{**SETTINGS, "second_expert": "lineage_noise"})
+    from experiments.instrumented import move_to
+
+    tracker = make_tracker(seed=0, **{**SETTINGS, "second_expert": "every_frame"})
     tracker.init(sequence.frame(0), sequence.init_box)
     tracker.update(sequence.frame(1))
     box = np.array([20.0, 15.0, 18.0, 14.0])
-    tracker.move_to(box)
-    np.testing.assert_array_equal(tracker.state, tracker.partner.state)
+    move_to(tracker, box)
+    np.testing.assert_array_equal(tracker.experts[0].state, tracker.experts[1].state)
+    np.testing.assert_array_equal(tracker.recognised_log_size, np.log(box[2:]))
 
 
 @pytest.mark.parametrize("changes, name", [(dict(second_expert="twin"), "second_expert"),

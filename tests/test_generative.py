@@ -7,6 +7,8 @@ import pytest
 from nrmlc import NRMLCTracker, TrackerParams
 from nrmlc.data import SyntheticSequence, SyntheticSpec
 from nrmlc.errors import ParameterError
+
+from experiments.instrumented import RecordingTracker
 from nrmlc.tracker.generative import (FIRST_FRAME_SHARE, N_ATOMS, LocalHistogramModel, kmeans_atoms,
                                       local_patches)
 
@@ -98,7 +100,7 @@ def sequence():
 
 
 def _boxes(sequence, seed=0, **changes):
-    tracker = NRMLCTracker(seed=seed, **{**SETTINGS, **changes})
+    tracker = RecordingTracker(seed=seed, **{**SETTINGS, **changes})
     tracker.init(sequence.frame(0), sequence.init_box)
     return tracker, np.array([tracker.update(sequence.frame(i)) for i in range(1, len(sequence))])
 

@@ -1,6 +1,8 @@
 """Template sampling (SCM / annulus), particle propagation (condensation / best), the
 state's range, the log-domain confidence, presets and the API's input checks."""
 import math
+import re
+from pathlib import Path
 import warnings
 
 import numpy as np
@@ -13,6 +15,10 @@ from nrmlc.data import SyntheticSequence, SyntheticSpec
 from nrmlc.errors import ParameterError
 from nrmlc.geometry import clamp_states, state_to_box
 from nrmlc.tracker import track_sequence
+
+from experiments.instrumented import RecordingTracker, move_to
+
+REPO_ROOT = Path(__file__).resolve().parent.parent
 from nrmlc.tracker.templates import (SCM_PUSH_INIT, SCM_PUSH_UPDATE, scm_negative_states,
                                      scm_positive_states, target_size)
 
@@ -109,7 +115,7 @@ def test_condensation_estimate_is_the_most_confident_particle(sequence):
 def test_move_to_restarts_the_particle_cloud(sequence):
     tracker = _tracker_after_one_frame(sequence, motion_sigmas=(0, 0, 0, 0, 0, 0))
     box = np.array([30.0, 40.0, 20.0, 25.0])
-    tracker.move_to(box)
+    move_to(tracker, box)
     drawn = tracker.sample_particles()
     np.testing.assert_allclose(state_to_box(drawn[0], 32), box)
     assert np.array_equal(drawn, np.tile(drawn[0], (len(drawn), 1)))
@@ -164,7 +170,7 @@ def test_wild_motion_keeps_boxes_bounded(sequence):
 @pytest.mark.parametrize("alpha", [2.5, 1e4, 1e300])
 def test_any_alpha_ranks_by_the_error_difference_without_overflow(sequence, alpha):
     # Without the generative term, whose own ranking tests/test_generative.py checks.
-    tracker = NRMLCTracker(seed=0, alpha=alpha, generative_weight=0.0, **FAST)
+    tracker = RecordingTracker(seed=0, alpha=alpha, generative_weight=0.0, **FAST)
     tracker.init(sequence.frame(0), sequence.init_box)
     with warnings.catch_warnings():
         warnings.simplefilter("error")
@@ -222,7 +228,7 @@ def test_frames_of_another_size_and_boxes_of_the_wrong_type_are_refused(sequence
     with pytest.raises(ParameterError, match="init\\(\\) saw"):
         tracker.update(frame[:-2])
     with pytest.raises(ParameterError, match="box"):
-        tracker.move_to("1,2,3,4")
+        move_to(tracker, "1,2,3,4")
 
 
 def test_pil_rgb_frames_track_like_numpy_frames(sequence):
@@ -262,7 +268,7 @@ def test_full_positive_set_replaces_the_closest(sequence):
     tracker._set_templates(positives, tracker.negative_templates)
     # The new result is nearest to the first frame's template 1, then to later template 4.
     new = first[1] + 0.1 * noise[2]
-    tracker._update_templates(sequence.frame(1), result, new[None, :])
+    tracker.update_templates(sequence.frame(1), result, new[None, :])
     replaced = 1
     assert np.array_equal(tracker.positive_templates[replaced], new)
     untouched = [i for i in range(5) if i != replaced]
@@ -276,12 +282,12 @@ def test_full_positive_set_replaces_the_closest(sequence):
                                   "shrunk_negatives", "grown_negatives", "negative_refresh", "positive_batch",
                                   "patch_blocks"])
 def test_fields_measured_and_not_adopted_are_refused_with_a_pointer(name):
-    from nrmlc.tracker.params import parse_param_assignment
+    from nrmlc.tracker.params import REMOVED_PARAMETERS, parse_param_assignment
 
-    pattern = rf"^parameter {name}: measured and not adopted, so removed \(see docs/FINDINGS.md\)$"
-    with pytest.raises(ParameterError, match=pattern):
-        TrackerParams(**{name: 0.5})
+    pattern = rf"unknown parameter '{name}'.*parameters measured and removed: {re.escape(REMOVED_PARAMETERS)}\)$"
     with pytest.raises(ParameterError, match=pattern):
         TrackerParams().replace(**{name: 0.5})
     with pytest.raises(ParameterError, match=pattern):
         parse_param_assignment(f"{name}=0.5")
+    record = REPO_ROOT / REMOVED_PARAMETERS.split("#")[0]
+    assert f"`{name}`" in record.read_text().split("## Parameters measured and removed")[1]

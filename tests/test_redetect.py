@@ -13,7 +13,10 @@ import pytest
 from nrmlc import NRMLCTracker, TrackerParams
 from nrmlc.workbench.metrics import overlaps
 from nrmlc.testing.scenes import jump_scene
-from nrmlc.tracker.redetect import REDETECT_TRIGGER, needs_search
+from nrmlc.tracker.records import NO_POSITIVE_ERROR as REDETECT_TRIGGER
+from nrmlc.tracker.redetect import needs_search
+
+from experiments.instrumented import RecordingTracker
 
 REPO_ROOT = Path(__file__).resolve().parent.parent
 JUMP_FRAME = 4
@@ -50,7 +53,7 @@ def test_redetection_recovers_a_jump_the_motion_model_cannot_follow(seed):
 def test_only_confident_redetection_candidates_carry_weight():
     frames, truth = jump_scene(jump_frame=JUMP_FRAME)
     params = TrackerParams(n_particles=200, redetect_count=150, redetect_accept=0.3)
-    tracker = NRMLCTracker(seed=1, params=params)
+    tracker = RecordingTracker(seed=1, params=params)
     tracker.init(frames[0], truth[0])
     for frame in frames[1:JUMP_FRAME + 1]:
         tracker.update(frame)

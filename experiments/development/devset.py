@@ -33,7 +33,8 @@ from pathlib import Path
 import numpy as np
 
 from experiments.grid import score, specs_for
-from experiments.sequence_sets import ADOPTION_RULE, DEVELOPMENT_A, DEVELOPMENT_B, DEVELOPMENT_SEQUENCES, MIN_SEEDS
+from experiments.sequence_sets import (ADOPTION_RULE, DEVELOPMENT_A, DEVELOPMENT_B, DEVELOPMENT_SEQUENCES, MIN_GAIN,
+                                      MIN_SEEDS)
 from nrmlc import io
 from nrmlc.config import data_root_from_env
 from nrmlc.data.synthetic import SyntheticSequence
@@ -374,6 +375,8 @@ def adopted(differences: dict) -> tuple[bool, str]:
         return False, "needs both halves"
     if len(a["per_seed"]) < MIN_SEEDS:
         return False, f"needs at least {MIN_SEEDS} seeds (has {len(a['per_seed'])})"
+    if not a["mean"] >= MIN_GAIN:
+        return False, f"A: {a['mean']:+.3f} is under the least gain worth a change, {MIN_GAIN}"
     if not a["mean"] > a["standard_error"]:
         return False, f"A: {a['mean']:+.3f} is not beyond its error {a['standard_error']:.3f}"
     if not b["mean"] > 0:

@@ -23,7 +23,7 @@ threads (:func:`_row_blocked_product`).
 
 Precision note: ``sgemm`` accumulates in float32, so each dot carries an
 absolute error of up to ~1e-6 for unit-norm rows (7e-7 measured). That is
-harmless for the regularised coder (``ridge`` around 1) but it is the
+harmless for the regularised coder (``ridge`` near 1) but it is the
 dominant error of the unregularised ("plain") coder, whose local Gram
 entries are differences of such dots. Pass float64 arrays to get ``dgemm``
 (about 2.3x slower) when that matters.

@@ -37,7 +37,7 @@ MAX_RADIUS = 1000.0
 #: scale or aspect, pi rad.
 MAX_MOTION_SIGMA = (1000.0, 1000.0, 1.0, math.pi, 1.0, math.pi)
 #: Where the parameters measured and removed are listed, with their evidence.
-REMOVED_PARAMETERS = "docs/research/README.md"
+REMOVED_PARAMETERS = "docs/research/README.md#parameters-measured-and-removed"
 
 
 @dataclass(frozen=True)
