@@ -11,6 +11,7 @@ held size change only what is reported. Evidence: docs/DEVIATIONS.md.
 from __future__ import annotations
 
 import dataclasses
+import warnings
 from dataclasses import dataclass
 from typing import Literal
 
@@ -222,8 +223,11 @@ class ExpertPair(OneCallAtATime):
     def init(self, image, box) -> None:
         """Start both experts on ``box`` (1-based x, y, w, h) of ``image``."""
         with self._alone("init"):
-            for expert in self.experts:
-                expert.init(image, box)
+            first, second = self.experts
+            first.init(image, box)
+            with warnings.catch_warnings():  # the same frame and box: the first expert has said it all
+                warnings.simplefilter("ignore")
+                second.init(image, box)
             self.average_errors = np.zeros(2)
             self.recognised_log_size = np.log(np.asarray(box, dtype=np.float64)[2:])
             self.last = None
