@@ -169,11 +169,28 @@ def test_fig_occlusion_main(tiny_context):
     assert data["at_frame"]["len_neg"] == data["at_frame"]["negative_templates_used"]
 
 
-def test_runs_match_what_the_scripts_read(tiny_context):
-    """run_all computes ``runs(context)`` first; the scripts must then find every job cached."""
-    for module in (theorem1_checks, stats_nonnegativity, fig2_mean_gray, fig1_coefficients, fig_occlusion):
-        jobs = module.runs(tiny_context)
-        assert jobs and not tiny_context.cache.missing(jobs), module.__name__  # the tests above ran them
+def test_runs_match_what_the_scripts_read(tmp_path, monkeypatch):
+    """run_all computes ``runs(context)`` first; the scripts must then find every job cached.
+
+    Self-contained: a fresh cache holds only what ``runs`` declares; a script that asks for any
+    other job fails, as computing is refused once the declared jobs are in."""
+    sequences = synthetic_suite(n_frames=30, size=(120, 160), n_sequences=2)
+    context = Context(figures_dir=tmp_path / "figures", cache=RunCache(tmp_path / "runs"), jobs=1, seeds=(0,),
+                      sweep_seeds=(0,), _sequences=sequences)
+    context.analysis_budget = TINY
+    modules = (theorem1_checks, stats_nonnegativity, fig2_mean_gray, fig1_coefficients, fig_occlusion)
+    declared = {module.__name__: module.runs(context) for module in modules}
+    assert all(declared.values()), declared
+    assert context.cache.missing([job for jobs in declared.values() for job in jobs])  # nothing cached yet
+    context.cache.ensure([job for jobs in declared.values() for job in jobs], jobs=1, progress=False)
+
+    def refuse(missing, *args, **kwargs):
+        raise AssertionError(f"a script needs jobs its runs() does not declare: {missing}")
+
+    monkeypatch.setattr(context.cache, "_compute", refuse)
+    for module in modules:
+        assert not context.cache.missing(declared[module.__name__]), module.__name__
+        run_script(module, context)
 
 
 def test_paper_claims_use_the_paper_preset(tiny_context):

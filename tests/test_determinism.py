@@ -91,12 +91,21 @@ def test_api_boxes_do_not_depend_on_blas_threads():
     """A user who calls the tracker without :func:`nrmlc.config.set_threads` leaves numpy's BLAS
     at its own thread count: the boxes are still those of one BLAS thread (the large products
     hold BLAS to one thread themselves; every other product is too small for OpenBLAS to split)."""
+    # The limit is raised here, not read: an earlier test in this process (the CLI's set_threads)
+    # may have left OpenBLAS at one thread, and threadpoolctl can raise it again. Only where
+    # OpenBLAS cannot run two threads (one core) is there nothing to compare.
     from threadpoolctl import threadpool_info, threadpool_limits
 
     from nrmlc.data import synthetic_suite
 
-    if max((info["num_threads"] for info in threadpool_info() if info["user_api"] == "blas"), default=1) < 2:
-        pytest.skip("numpy's BLAS runs one thread here")
+    def blas_threads_now() -> int:
+        return min((info["num_threads"] for info in threadpool_info() if info["user_api"] == "blas"), default=0)
+
+    with threadpool_limits(limits=2, user_api="blas"):
+        raised = blas_threads_now()
+    if raised < 2:
+        pytest.skip(f"numpy's BLAS cannot run two threads on this machine ({os.cpu_count()} core(s); "
+                    f"asked for 2, got {raised}): nothing to compare")
     sequence = synthetic_suite(n_frames=12, n_sequences=1)[0]
     frames = list(sequence)
 
@@ -104,6 +113,7 @@ def test_api_boxes_do_not_depend_on_blas_threads():
         """The boxes, and every candidate's log confidence on each frame (continuous: a rounding
         difference shows there even where it moves no box)."""
         with threadpool_limits(limits=blas_threads, user_api="blas"):
+            assert blas_threads_now() == blas_threads
             tracker = NRMLCTracker(seed=2)
             tracker.init(frames[0], sequence.init_box)
             boxes, confidences = [], []

@@ -4,7 +4,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from nrmlc import NRMLCTracker, TrackerParams
+from nrmlc import TrackerParams
 from nrmlc.data import SyntheticSequence, SyntheticSpec
 from nrmlc.errors import ParameterError
 

@@ -85,7 +85,7 @@ def test_got10k_track_loop_with_pil_frames(otb_root):
     assert boxes.shape == (N_FRAMES, 4) and np.isfinite(boxes).all()
     np.testing.assert_array_equal(boxes[0], truth[0])
     assert (times[1:] > 0).all()
-    assert overlaps(boxes, truth)[1:].mean() > 0.5, boxes
+    assert overlaps(boxes, truth)[1:].mean() > 0.63, boxes  # measured 0.74: a loss of 0.1 fails
     again, _ = NRMLCGot10k(seed=0, **FAST).track(files, truth[0])
     np.testing.assert_array_equal(again, boxes)
     # The same as feeding NRMLCTracker the gray image PIL makes of each RGB frame.
@@ -114,7 +114,7 @@ def test_experiment_otb_runs_offline_and_agrees_with_nrmlc_evaluate(otb_root, tm
         assert ours.evaluations[name].success_auc == pytest.approx(theirs["success_score"], abs=1e-9)
         assert ours.evaluations[name].precision_20 == pytest.approx(theirs["precision_score"], abs=1e-9)
     assert ours.summary()["success_auc"] == pytest.approx(performance["overall"]["success_score"], abs=1e-9)
-    assert ours.summary()["success_auc"] > 0.4  # it tracked
+    assert ours.summary()["success_auc"] > 0.6  # it tracked (measured 0.70: a loss of 0.1 fails)
 
     # A second run finds the results and skips every sequence (got10k's own resume).
     capsys.readouterr()

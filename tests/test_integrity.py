@@ -68,7 +68,7 @@ def test_regenerated_sequence_is_not_served_from_the_cache(tmp_path, capsys):
     boxes = read_box_file(tmp_path / "NEW" / "synth-01.txt")
     np.testing.assert_array_equal(boxes[0], truth[0])  # the new first box, not the old run's
     summary = json.loads((tmp_path / "NEW" / "summary.json").read_text())
-    assert summary["runs"][0]["mean_overlap"] > 0.3
+    assert summary["runs"][0]["mean_overlap"] > 0.68  # measured 0.79: a loss of 0.1 fails
 
 
 def test_the_key_follows_every_frame_and_the_ground_truth(tmp_path):

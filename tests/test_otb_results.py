@@ -123,14 +123,17 @@ def test_ivt_affine_is_the_floored_corners_of_the_template():
     result = read_otb_result(FIXTURES / "walker.2_AffTracker.mat")
     assert result.type == "ivtAff" and result.fps == 2.5
     np.testing.assert_array_equal(result.boxes[0], truth()[0])  # frame 0: the initial box, exactly
-    # Independently: map the template's corners (u, v) = (-16, -16) and (16, 16) with M = [tx a11 a12; ty a21 a22].
+    # Independently: map the corners (u, v) = (-w/2, -h/2) and (w/2, h/2) of the (w, h) = (32, 24)
+    # template (not square: a reader taking tmplsize as (h, w) fails) with M = [tx a11 a12; ty a21 a22].
     import scipy.io
 
-    states = scipy.io.loadmat(FIXTURES / "walker.2_AffTracker.mat")["results"][0, 0]["res"][0, 0]
+    fields = scipy.io.loadmat(FIXTURES / "walker.2_AffTracker.mat")["results"][0, 0]
+    states = fields["res"][0, 0]
+    np.testing.assert_array_equal(fields["tmplsize"][0, 0].ravel(), [32, 24])
     for p, box in zip(states, result.boxes):
         matrix = np.array([[p[0], p[2], p[3]], [p[1], p[4], p[5]]])
-        top_left = np.floor(matrix @ [1, -16, -16])
-        bottom_right = np.floor(matrix @ [1, 16, 16])
+        top_left = np.floor(matrix @ [1, -16, -12])
+        bottom_right = np.floor(matrix @ [1, 16, 12])
         np.testing.assert_array_equal(box, [*top_left, *(bottom_right - top_left)])
     assert np.any(result.boxes[1:, 2] != 20)  # the shear of the later frames changes the size
 
@@ -146,6 +149,12 @@ def test_l1_affine_is_the_rounded_corners_plus_one():
 
 def test_ivt_boxes_of_an_axis_aligned_state():
     np.testing.assert_array_equal(ivt_affine_boxes([[270, 107, 0.5, 0, 0, 0.8125]], (32, 32)), [[262, 94, 16, 26]])
+    # tmplsize is (w, h): a 32 wide, 24 high template, u along x and v along y.
+    np.testing.assert_array_equal(ivt_affine_boxes([[270, 107, 0.5, 0, 0, 0.8125]], (32, 24)), [[262, 97, 16, 19]])
+    # With a rotation and shear, a12 multiplies h/2 and a21 w/2: x from 270 -+ (0.5 * 16 + 0.25 * 12),
+    # y from 107 -+ (-0.1 * 16 + 0.8125 * 12).
+    np.testing.assert_array_equal(ivt_affine_boxes([[270, 107, 0.5, 0.25, -0.1, 0.8125]], (32, 24)),
+                                  [[259, 98, 22, 17]])
 
 
 def test_a_bare_result_matrix_is_rect_without_fps():

@@ -15,12 +15,12 @@ from nrmlc.data import SyntheticSequence, SyntheticSpec
 from nrmlc.errors import ParameterError
 from nrmlc.geometry import clamp_states, state_to_box
 from nrmlc.tracker import track_sequence
+from nrmlc.tracker.templates import (SCM_PUSH_INIT, SCM_PUSH_UPDATE, scm_negative_states,
+                                     scm_positive_states, target_size)
 
 from experiments.instrumented import RecordingTracker, move_to
 
 REPO_ROOT = Path(__file__).resolve().parent.parent
-from nrmlc.tracker.templates import (SCM_PUSH_INIT, SCM_PUSH_UPDATE, scm_negative_states,
-                                     scm_positive_states, target_size)
 
 FAST = dict(n_particles=120)
 

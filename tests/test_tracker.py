@@ -7,6 +7,7 @@ from nrmlc.data import SyntheticSequence, SyntheticSpec
 from nrmlc.errors import ParameterError
 from nrmlc.workbench.metrics import evaluate
 from nrmlc.tracker import track_sequence
+from nrmlc.tracker.records import Coding
 
 from experiments.instrumented import RecordingTracker, move_to, track_instrumented
 
@@ -43,7 +44,8 @@ def test_got10k_interface_tracks_the_synthetic_target(sequence, tracked):
     scores = evaluate(tracked.boxes, sequence.groundtruth)
     # a static box would score far lower: the target moves ~4 px/frame
     static = evaluate(np.tile(sequence.init_box, (len(sequence), 1)), sequence.groundtruth)
-    assert scores.mean_overlap > 0.6 and scores.mean_overlap > static.mean_overlap + 0.2
+    # measured 0.82: a loss of 0.1 fails
+    assert scores.mean_overlap > 0.71 and scores.mean_overlap > static.mean_overlap + 0.2
 
 
 def test_paper_defaults():
@@ -172,7 +174,7 @@ def test_problem1_literal_confidence_prefers_the_worst_candidate(sequence):
 def test_problem1_literal_confidence_loses_the_target(sequence, tracked):
     literal = track_sequence(sequence, TrackerParams(confidence="literal", **FAST), seed=0)
     assert evaluate(literal.boxes, sequence.groundtruth).mean_overlap < 0.3
-    assert evaluate(tracked.boxes, sequence.groundtruth).mean_overlap > 0.6
+    assert evaluate(tracked.boxes, sequence.groundtruth).mean_overlap > 0.71  # measured 0.82
 
 
 def test_problem2_printed_closed_form_does_not_sum_to_one(coded_frame):
@@ -242,15 +244,31 @@ def test_positive_set_is_capped_and_replaces_the_closest(sequence):
     tracker = RecordingTracker(seed=0, n_particles=50, n_positive=3, max_positive=4, update_interval=1,
                                update_error_threshold=4.0, occlusion_detection=False)
     tracker.init(sequence.frame(0), sequence.init_box)
-    counts = []
-    for index in range(1, 6):
+    # Here the estimates stay nearest the first positive template: moved to the middle, the
+    # closest row is neither the oldest nor the newest (the idea of test_propagation.py's
+    # test_full_positive_set_replaces_the_closest, on real estimates).
+    tracker._set_templates(tracker.positive_templates[[1, 0, 2]], tracker.negative_templates)
+    counts, replaced = [], []
+    for index in range(1, 7):
+        before = tracker.positive_templates.copy()
         tracker.update(sequence.frame(index))
         counts.append(len(tracker.positive_templates))
-    assert counts == [4, 4, 4, 4, 4]
-    # the newest result is in the set
-    coding = tracker.last_coding
-    new = coding.patches[int(np.argmax(coding.log_confidence))]
-    assert np.any(np.all(tracker.positive_templates == new, axis=1))
+        assert tracker.last.updated_positive
+        coding = tracker.last_coding
+        new = coding.patches[int(np.argmax(coding.log_confidence))]  # this frame's estimate
+        after = tracker.positive_templates
+        if len(before) < 4:  # below the cap: appended
+            np.testing.assert_array_equal(after, np.vstack([before, new]))
+            continue
+        # At the cap: exactly one row changed, to the estimate, and it is the row that was
+        # closest to the estimate (not the oldest, not the last added).
+        changed = np.flatnonzero(np.any(after != before, axis=1))
+        distances = ((before.astype(np.float64) - new) ** 2).sum(axis=1)
+        assert changed.tolist() == [int(np.argmin(distances))], distances
+        np.testing.assert_array_equal(after[changed[0]], new)
+        replaced.append(int(changed[0]))
+    assert counts == [4, 4, 4, 4, 4, 4]
+    assert set(replaced) - {0, 3}  # a rule replacing the first or the last row would have failed
 
 
 @pytest.mark.parametrize("max_positive, threshold", [(4, 4.0), (60, 4.0), (60, 0.0)])
@@ -280,6 +298,51 @@ def test_occlusion_blocks_positive_updates(sequence):
         for index in range(1, 4):
             tracker.update(sequence.frame(index))
     assert len(blocked.positive_templates) == 50 and len(free.positive_templates) == 53
+
+
+def _coding_of_one(tracker: NRMLCTracker, patch: np.ndarray, negative_codes: list) -> Coding:
+    """A hand-built :class:`Coding` of one candidate (``patch``) whose code is ``negative_codes`` on
+    negative templates 0, 1, ... and the rest of the unit sum spread over positive templates."""
+    p = tracker.params
+    k, n_pos = p.k_max, len(tracker.positive_templates)
+    n_neg = len(negative_codes)
+    neighbours = np.concatenate([np.arange(k - n_neg), n_pos + np.arange(n_neg)]).astype(np.int64)
+    codes = np.concatenate([np.full(k - n_neg, (1.0 - sum(negative_codes)) / (k - n_neg)), negative_codes])
+    m = len(p.dictionary_sizes)
+    return Coding(patches=patch[None, :], dots=patch[None, :].astype(np.float64) @ tracker.templates.T,
+                  neighbours=neighbours[None, :], coefficients=np.tile(codes, (1, m, 1)),
+                  weights=np.full((1, m), 1.0 / m), codes=codes[None, :], error_positive=np.array([0.01]),
+                  error_negative=np.array([0.9]), log_confidence=np.array([-2.0]))
+
+
+@pytest.mark.parametrize("used, occluded", [(2, False), (3, True)])
+def test_occlusion_rule_at_its_edge(sequence, used, occluded):
+    """Algorithm 2's LEN(neg*) > 2: the best code on exactly 2 negative templates (above
+    ``coefficient_tolerance``, either sign) is no occlusion and the estimate joins the positives;
+    on 3 it is, and the positives stay as they were. A negative code at the tolerance itself is
+    not counted."""
+    tracker = NRMLCTracker(seed=0, n_particles=20, n_positive=10, n_negative=20, max_positive=20,
+                           update_error_threshold=0.1)
+    p = tracker.params
+    assert p.occlusion_max_negative == 2 == TrackerParams.paper().occlusion_max_negative
+    assert p.occlusion_detection
+    tracker.init(sequence.frame(0), sequence.init_box)
+    frame = sequence.frame(1)
+    patch = tracker.patches(frame, tracker.state[None, :])[0]
+    above = [0.05, -0.03, 0.02][:used]
+    coding = _coding_of_one(tracker, patch, above + [p.coefficient_tolerance, -p.coefficient_tolerance])
+    result = tracker._result(coding, 0, searched=False, redetected=False)
+    assert result.n_negative_used == used
+    assert result.occluded is occluded
+    before = tracker.positive_templates.copy()
+    tracker.update_templates(frame, result, patch[None, :])
+    assert result.updated_positive is not occluded
+    if occluded:
+        np.testing.assert_array_equal(tracker.positive_templates, before)
+    else:
+        assert len(tracker.positive_templates) == len(before) + 1
+        np.testing.assert_array_equal(tracker.positive_templates[:-1], before)
+        np.testing.assert_array_equal(tracker.positive_templates[-1], patch)
 
 
 @pytest.mark.parametrize("coding", ["constrained", "plain"])

@@ -77,8 +77,9 @@ def test_video_file_tracked_end_to_end(name, fourcc, tmp_path, capsys):
     assert boxes.shape == (N_FRAMES, 4)
     np.testing.assert_array_equal(boxes[0], truth[0])
     assert np.isfinite(boxes).all()
-    # It follows the target (a lossy codec, 50 particles: loose, but a lost target fails it).
-    assert overlaps(boxes, truth)[1:].mean() > 0.5, boxes
+    # It follows the target (a lossy codec, 50 particles; measured 0.89 with MJPG, 0.91 with mp4v:
+    # a loss of 0.1 fails it).
+    assert overlaps(boxes, truth)[1:].mean() > 0.79, boxes
     assert "clip: 12 frames" in err
 
 
@@ -159,7 +160,7 @@ def test_frame_folder_without_groundtruth(tmp_path, capsys):
     code, _, err = run_main(["track", folder, "--out", out, "--init-box", "21,21,20,16", *FAST], capsys)
     assert code == 0, err
     boxes = read_box_file(out, predictions=True)
-    assert len(boxes) == N_FRAMES and overlaps(boxes, truth)[1:].mean() > 0.5
+    assert len(boxes) == N_FRAMES and overlaps(boxes, truth)[1:].mean() > 0.79  # measured 0.89
 
 
 def test_video_sequence_pickles_for_worker_processes(tmp_path):
