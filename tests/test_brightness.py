@@ -4,6 +4,7 @@ import numpy as np
 
 from nrmlc import NRMLCTracker, TrackerParams
 from nrmlc.data import SyntheticSequence, SyntheticSpec
+from nrmlc.tracker.brightness import levelled
 
 FAST = dict(n_particles=150)
 
@@ -30,6 +31,6 @@ def test_levelled_frame_has_the_first_frames_mean():
     tracker = NRMLCTracker(seed=0, **FAST)
     tracker.init(sequence.frame(0), sequence.init_box)
     frame = sequence.frame(1).astype(np.float32) + np.float32(0.3)
-    assert abs(tracker._levelled(frame).mean(dtype=np.float64) - sequence.frame(0).mean(dtype=np.float64)) < 1e-5
+    assert abs(levelled(frame, tracker.first_frame_mean, tracker.params).mean(dtype=np.float64) - sequence.frame(0).mean(dtype=np.float64)) < 1e-5
     assert TrackerParams().brightness == "first_frame"
     assert TrackerParams.paper().brightness == "raw"

@@ -30,7 +30,7 @@ from nrmlc.data import synthetic_suite  # noqa: E402
 from nrmlc.io import write_boxes  # noqa: E402
 from nrmlc.workbench.metrics import overlaps  # noqa: E402
 from nrmlc.workbench.toolkits import NRMLCGot10k  # noqa: E402
-from nrmlc.tracker.algorithm import NRMLCTracker  # noqa: E402
+from nrmlc.tracker.experts import make_tracker  # noqa: E402
 
 FAST = dict(n_particles=50, n_positive=10, n_negative=20, max_positive=20)
 FAST_CLI = [item for name, value in FAST.items() for item in ("--param", f"{name}={value}")]
@@ -88,8 +88,8 @@ def test_got10k_track_loop_with_pil_frames(otb_root):
     assert overlaps(boxes, truth)[1:].mean() > 0.63, boxes  # measured 0.74: a loss of 0.1 fails
     again, _ = NRMLCGot10k(seed=0, **FAST).track(files, truth[0])
     np.testing.assert_array_equal(again, boxes)
-    # The same as feeding NRMLCTracker the gray image PIL makes of each RGB frame.
-    tracker = NRMLCTracker(seed=0, **FAST)
+    # The same as feeding make_tracker's tracker the gray image PIL makes of each RGB frame.
+    tracker = make_tracker(seed=0, **FAST)
     gray = [np.asarray(Image.open(f).convert("RGB").convert("L")) for f in files]
     tracker.init(gray[0], truth[0])
     manual = np.array([truth[0]] + [tracker.update(g) for g in gray[1:]])

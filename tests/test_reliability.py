@@ -74,7 +74,9 @@ def test_constant_frames_stay_finite(coding, lam, value):
 def test_duplicate_templates_singular_gram_plain_coding():
     """lambda = 0 ('plain') on identical templates: the Gram matrix is rank 1."""
     frames = [np.full((48, 64), 77, np.uint8)] * 3
-    tracker = NRMLCTracker(seed=0, coding="plain", lam=0.0, beta=0.0, **SMALL)
+    from experiments.instrumented import RecordingTracker
+
+    tracker = RecordingTracker(seed=0, coding="plain", lam=0.0, beta=0.0, **SMALL)
     tracker.init(frames[0], (20, 14, 24, 20))
     assert np.linalg.matrix_rank(tracker.template_gram, tol=1e-6) == 1
     for frame in frames[1:]:
@@ -277,7 +279,7 @@ def test_bad_parameters(overrides, message):
 
 
 def test_bad_tracker_use():
-    with pytest.raises(ParameterError, match=r"unknown parameter\(s\): lamda"):
+    with pytest.raises(ParameterError, match=r"unknown parameter 'lamda'; did you mean lam\?"):
         NRMLCTracker(lamda=1.0)
     with pytest.raises(ParameterError, match="parameter seed"):
         NRMLCTracker(seed=-1)

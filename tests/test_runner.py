@@ -214,29 +214,28 @@ def test_run_keys_are_pinned():
     spec = RunSpec(tiny_sequence(0), TrackerParams(), seed=3, n_frames=5, label="not part of the key")
     description = spec.description("0123456789abcdef")
     assert description == {"sequence": sequence_identity(spec.sequence), "sequence_name": "tiny-0",
-                           "params": jobs.params_for_key(TrackerParams()), "seed": 3, "n_frames": 5,
-                           "code_version": "0123456789abcdef"}
+                           "params": TrackerParams().as_dict(), "seed": 3, "n_frames": 5,
+                           "code_version": "0123456789abcdef", "epoch": jobs.CACHE_EPOCH}
     text = json.dumps(description, sort_keys=True, default=str)
     assert spec.key("0123456789abcdef") == hashlib.sha256(text.encode()).hexdigest()[:24]
     # The hash of a fixed description, pinned literally.
     fixed = {"sequence": "folder:/data/Car4:Car4:659", "sequence_name": "Car4", "params": {"lam": 1.0},
              "seed": 0, "n_frames": None, "code_version": "0123456789abcdef"}
     assert jobs.description_key(fixed) == "c11d3c395e02361a13af561a"
-    assert RunSpec(tiny_sequence(0), recentre_every=10).description("v")["recentre_every"] == 10
-    assert "recentre_every" not in RunSpec(tiny_sequence(0)).description("v")
+    from experiments.instrumented import DiagnosticRun
+
+    assert DiagnosticRun(tiny_sequence(0), recentre_every=10).description("v")["recentre_every"] == 10
+    assert "recentre_every" not in DiagnosticRun(tiny_sequence(0)).description("v")
+    assert DiagnosticRun(tiny_sequence(0)).key("v") == RunSpec(tiny_sequence(0)).key("v")
 
 
-def test_a_switch_added_later_stays_out_of_the_key_while_off(monkeypatch):
-    """A new switch, off, must leave the default's key as it was (so a screen can read the
-    default's runs cached before the switch existed); on, it enters the key."""
+def test_every_parameter_and_the_epoch_are_in_the_key(monkeypatch):
+    """A run's key holds every parameter and the cache epoch: changing either gives another key."""
     before = RunSpec(tiny_sequence(0), TrackerParams(), seed=0).key("v")
-    # Every switch the default holds is on: on a branch that adds a switch off by default this line
-    # fails, by design: TrackerParams holds only what is adopted, and a switch not adopted stays on its branch.
     assert jobs.params_for_key(TrackerParams()) == TrackerParams().as_dict()
-    monkeypatch.setattr(jobs, "SWITCHES_ADDED_LATER", {"redetect_count": 300})
-    assert "redetect_count" not in jobs.params_for_key(TrackerParams())
-    assert RunSpec(tiny_sequence(0), TrackerParams(), seed=0).key("v") != before  # the field left the key
-    assert jobs.params_for_key(TrackerParams(redetect_count=0))["redetect_count"] == 0
+    assert RunSpec(tiny_sequence(0), TrackerParams(redetect_count=0), seed=0).key("v") != before
+    monkeypatch.setattr(jobs, "CACHE_EPOCH", jobs.CACHE_EPOCH + 1)
+    assert RunSpec(tiny_sequence(0), TrackerParams(), seed=0).key("v") != before
 
 
 def test_frames_tracked_is_one_rule():
@@ -569,8 +568,10 @@ def test_negative_shares_are_recorded_only_on_request_and_keyed_apart():
     from nrmlc.data import SyntheticSequence, SyntheticSpec
 
     sequence = SyntheticSequence(SyntheticSpec(name="shares", seed=0, n_frames=4))
+    from experiments.instrumented import DiagnosticRun
+
     plain = RunSpec(sequence, TrackerParams(n_particles=20), n_frames=4)
-    shares = RunSpec(sequence, TrackerParams(n_particles=20), n_frames=4, negative_shares=True)
+    shares = DiagnosticRun(sequence, TrackerParams(n_particles=20), n_frames=4, negative_shares=True)
     assert "negative_shares" not in plain.description("v") and plain.key("v") != shares.key("v")
     without, with_shares = plain.result(plain.execute()), shares.result(shares.execute())
     assert "negative_share_c" not in without.diagnostics

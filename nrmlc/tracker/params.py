@@ -64,7 +64,7 @@ class PaperParams(CheckedParams):
         'pixels': ``motion_sigmas[0:2]`` are image pixels. 'relative' (L1APG's ``draw_sample``):
         template pixels, i.e. multiplied by the target's size ``sqrt((w^2 + h^2) / 2) / patch_size``.
     n_positive, n_negative : int
-        Initial template counts: p = 50 (paper); n = 100, *ours* (paper: 150; SCM's ``demo.m``: 200).
+        Initial template counts p and n (paper: 50 and 150; *ours*: n = 100; SCM's ``demo.m``: 200).
     template_sampling : {'scm', 'annulus'}
         Where template centres are drawn. 'scm' follows SCM's ``affineTrainG.m`` / ``updateDic.m``:
         positives from N(0, ``positive_sigma`` px) about the target; negatives from
