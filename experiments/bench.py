@@ -399,7 +399,7 @@ def bench_stages(sequence, counts, warm_frames: int = 20, timed_frames: int = 60
 # ---------------------------------------------------------------------------
 
 def _warmed_tracker(sequence, n_frames: int):
-    """A tracker run over the first frames, so its templates include updates."""
+    """One expert run over the first frames, so that its templates, the kernels' inputs, include updates."""
     from nrmlc.tracker.algorithm import NRMLCTracker
 
     tracker = NRMLCTracker(seed=0)
