@@ -45,8 +45,7 @@ class RecordingPair(ExpertPair):
     probe = None
 
     def __init__(self, seed: int = 0, params=None, expert_class=RecordingTracker, **overrides) -> None:
-        super().__init__(seed, params, **overrides)
-        self.experts = (expert_class(seed, self.params), expert_class(seed, self.params.partner_params()))
+        super().__init__(seed, params, expert_class, **overrides)
 
     @property
     def last_coding(self) -> Coding:

@@ -186,6 +186,9 @@ class ExpertPair(OneCallAtATime):
     params : TrackerParams, optional
         The first expert's parameters (``second_expert`` not 'off'); the second's are
         :meth:`ExpertParams.partner_params`. Keyword arguments override single fields.
+    expert_class : callable(seed, params), optional
+        What each expert is (default :class:`~nrmlc.tracker.algorithm.NRMLCTracker`; a subclass
+        for a diagnostic).
 
     Attributes
     ----------
@@ -196,17 +199,18 @@ class ExpertPair(OneCallAtATime):
 
     name = "NRMLC"
 
-    def __init__(self, seed: int = 0, params=None, **overrides) -> None:
+    def __init__(self, seed: int = 0, params=None, expert_class=None, **overrides) -> None:
         from nrmlc.tracker.algorithm import NRMLCTracker  # the trackers' module needs this one's group
 
-        first = NRMLCTracker(seed, params, **overrides)
+        expert_class = expert_class or NRMLCTracker
+        first = expert_class(seed, params, **overrides)
         if first.params.second_expert == "off":
             raise ParameterError("parameter second_expert: an ExpertPair needs a second expert, got 'off' "
                                  "(make_tracker gives one NRMLCTracker then)")
         super().__init__()
         self.params = first.params
         self.seed = first.seed
-        self.experts = (first, NRMLCTracker(seed, self.params.partner_params()))
+        self.experts = (first, expert_class(seed, self.params.partner_params()))
         self.average_errors = np.zeros(2)
         self.recognised_log_size: np.ndarray | None = None
         self.last: FrameResult | None = None
