@@ -43,7 +43,6 @@ import csv
 import io as text_io
 import json
 import math
-import numbers
 import os
 import re
 import sys
@@ -54,6 +53,7 @@ import numpy as np
 
 from nrmlc import io
 from nrmlc.errors import DataError, ParameterError
+from nrmlc.workbench.manifest import read_manifest
 from nrmlc.workbench.results_layout import (LOCK_NAME, MANIFEST_NAME, SEEDS_FOLDER, SUMMARY_CSV, SUMMARY_JSON,
                                    parse_names, result_file, select_sequences)
 
@@ -96,54 +96,6 @@ def _check_out_beside_inputs(out: Path, sequences) -> None:
                                  f"elsewhere")
 
 
-def _number_or_none(value) -> bool:
-    return value is None or (isinstance(value, numbers.Real) and not isinstance(value, bool))
-
-
-def check_manifest(manifest, path) -> dict:
-    """Refuse a ``benchmark.json`` of the wrong shape (valid JSON, wrong types) with one line naming it.
-
-    Returns
-    -------
-    dict
-        ``manifest``, with ``runs`` added when it was absent.
-    """
-    def fail(what: str):
-        raise DataError(f"{path}: not a benchmark manifest ({what}); repair or remove it, or choose another --out")
-
-    if not isinstance(manifest, dict):
-        fail(f"a JSON {type(manifest).__name__}, not an object")
-    if not isinstance(manifest.get("settings"), dict):
-        fail("no 'settings' object")
-    if not isinstance(manifest["settings"].get("params", {}), dict):
-        fail("'settings.params' is not an object")
-    primary = manifest.get("primary_seed")
-    if primary is not None and (isinstance(primary, bool) or not isinstance(primary, int) or primary < 0):
-        fail(f"'primary_seed' must be a seed or null, got {primary!r}")
-    runs = manifest.setdefault("runs", {})
-    if not isinstance(runs, dict):
-        fail("'runs' is not an object")
-    for name, seeds in runs.items():
-        if not isinstance(seeds, dict):
-            fail(f"runs[{name!r}] is not an object")
-        for seed, entry in seeds.items():
-            where = f"runs[{name!r}][{seed!r}]"
-            if not (seed.isdigit() and seed.isascii()):
-                fail(f"{where}: the key is not a seed")
-            if not isinstance(entry, dict):
-                fail(f"{where} is not an object")
-            frames = entry.get("frames")
-            if isinstance(frames, bool) or not isinstance(frames, int) or frames < 1:
-                fail(f"{where}.frames must be a positive integer, got {frames!r}")
-            if not _number_or_none(entry.get("fps")):
-                fail(f"{where}.fps must be a number or null, got {entry.get('fps')!r}")
-            scores = entry.get("scores")
-            if scores is not None and (not isinstance(scores, dict)
-                                       or not all(_number_or_none(v) for v in scores.values())):
-                fail(f"{where}.scores must be an object of numbers or null")
-    return manifest
-
-
 @contextlib.contextmanager
 def _locked(out: Path):
     """Hold the folder's lock (exclusive ``flock`` on :data:`LOCK_NAME`): one writer of the manifest at a time."""
@@ -163,13 +115,11 @@ def _locked(out: Path):
 
 def _read_manifest(out: Path, settings: dict) -> dict:
     """The folder's manifest, a new one for a new folder; refuse foreign or mismatched folders."""
-    path = out / MANIFEST_NAME
-    if path.is_file():
-        try:
-            manifest = json.loads(path.read_text())
-        except (ValueError, OSError) as exc:
-            raise DataError(f"{path}: not a benchmark manifest ({exc})") from None
-        check_manifest(manifest, path)
+    found = read_manifest(out, advice="repair or remove it, or choose another --out")
+    if found is not None:
+        for line in found.unwritten:
+            warnings.warn(line)
+        manifest = found.data
         stored = manifest["settings"]
         details = []
         for key in sorted(set(stored) | set(settings)):

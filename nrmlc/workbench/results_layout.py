@@ -5,9 +5,21 @@ writes (:mod:`nrmlc.workbench.benchmark`) and ``nrmlc evaluate`` reads (:mod:`nr
     OUT/seeds/<seed>/<Seq>.txt   every other seed
     OUT/summary.csv, summary.json
     OUT/benchmark.json           the manifest (settings, one entry per finished run)
+
+Reading ``evaluate``'s inputs
+    Every file ``evaluate`` reads (result files, OTB ``.mat`` files, attribute files, manifests)
+    goes through :func:`check_input_file` first: a broken or looping link, a FIFO, a device or
+    a folder where a file is looked up is refused by name (as ground truth is, never taken for
+    an absent file), and so is a file larger than its kind can be. Memory running out while
+    one is read (:func:`reading`) is refused by name too. Both are :class:`InputTooLarge`: the
+    command stops, since scoring the tracker as failing there would make a resource limit
+    change the scores. File extensions are matched without regard to case (``Car4.TXT``,
+    ``Biker_IVT.MAT``: :func:`has_suffix`); names starting with a dot (a writer's hidden
+    temporary file) are never inputs.
 """
 from __future__ import annotations
 
+import contextlib
 import os
 from pathlib import Path
 
@@ -19,6 +31,73 @@ SUMMARY_JSON = "summary.json"
 SEEDS_FOLDER = "seeds"
 #: Held (flock) around every read-modify-write of the manifest; stays in the folder.
 LOCK_NAME = ".benchmark.lock"
+
+
+class InputTooLarge(DataError):
+    """An input larger than its kind can be, or one that memory ran out reading: it stops the
+    command (never a note, never a tracker scored as failing)."""
+
+
+def has_suffix(path, suffix: str) -> bool:
+    """Whether ``path`` is a visible file name ending in ``suffix``, in any case (``.TXT`` is ``.txt``)."""
+    name = Path(path).name
+    return not name.startswith(".") and name.lower().endswith(suffix.lower()) and len(name) > len(suffix)
+
+
+def check_input_file(path, what: str, max_bytes: int) -> bool:
+    """Whether an input is there to read; refuse, naming it, one that is there but unreadable or too large.
+
+    Parameters
+    ----------
+    path : path
+    what : str
+        What the file is, for messages (``"result file"``).
+    max_bytes : int
+        The largest file of its kind.
+
+    Returns
+    -------
+    bool
+        False when nothing is there (not even a link).
+
+    Raises
+    ------
+    DataError
+        A broken or looping link, a FIFO, device or folder (:mod:`nrmlc.data.otb`'s check of
+        ground-truth files).
+    InputTooLarge
+        A file of more than ``max_bytes``.
+    """
+    from nrmlc.data.otb import _present
+
+    path = Path(path)
+    if not _present(path):
+        return False
+    size = path.stat().st_size
+    if size > max_bytes:
+        raise InputTooLarge(f"{path}: {_size_text(size)} is too large for a {what} (at most "
+                            f"{_size_text(max_bytes)}); not read")
+    return True
+
+
+def _size_text(n_bytes: int) -> str:
+    return f"{n_bytes / 2**20:.1f} MB" if n_bytes >= 2**20 else f"{n_bytes / 2**10:.1f} kB"
+
+
+@contextlib.contextmanager
+def reading(path, what: str):
+    """Turn memory running out while ``path`` is read into :class:`InputTooLarge` naming it."""
+    try:
+        yield
+    except MemoryError:
+        raise InputTooLarge(f"{path}: ran out of memory reading this {what}; not scored (free memory or "
+                            f"leave the file out)") from None
+
+
+def is_plain_name(name) -> bool:
+    """Whether ``name`` can only name an entry of a folder (no path, no ``..``)."""
+    return (isinstance(name, str) and bool(name) and name not in (".", "..") and "/" not in name
+            and os.sep not in name and not (os.altsep and os.altsep in name) and "\0" not in name)
 
 
 def parse_names(text: str | None) -> list[str] | None:
@@ -33,8 +112,7 @@ def parse_names(text: str | None) -> list[str] | None:
 
 def _check_name(name: str, data_root) -> None:
     """A ``--sequences`` entry names a sequence of the data root, never a path elsewhere."""
-    if not isinstance(name, str) or not name or name in (".", "..") or "/" in name or os.sep in name \
-            or (os.altsep and os.altsep in name) or "\0" in name:
+    if not is_plain_name(name):
         raise ParameterError(f"--sequences {name!r}: give the name of a sequence of {data_root}, not a path")
 
 
