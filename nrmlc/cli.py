@@ -356,6 +356,8 @@ def _terminate(signum, frame) -> None:
 
 
 def _run(args: argparse.Namespace) -> int:
+    from concurrent.futures import BrokenExecutor
+
     from nrmlc.errors import NrmlcError
 
     try:
@@ -364,6 +366,19 @@ def _run(args: argparse.Namespace) -> int:
         if args.debug:
             raise
         print(f"error: {_one_line(error)}", file=sys.stderr)
+        return 2
+    except MemoryError as error:
+        if args.debug:
+            raise
+        print(f"error: out of memory ({_one_line(error) if str(error) else 'MemoryError'}): {_memory_advice()}",
+              file=sys.stderr)
+        return 2
+    except BrokenExecutor as error:
+        # A worker process killed from outside (the kernel's out-of-memory killer, most often).
+        if args.debug:
+            raise
+        print(f"error: a worker process ended abruptly ({_one_line(error)}); runs finished before it are kept "
+              f"(a rerun resumes); if memory ran out, {_memory_advice()}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
         print("interrupted", file=sys.stderr)
@@ -380,6 +395,19 @@ def _run(args: argparse.Namespace) -> int:
             raise
         print(f"error: {_one_line(error)}", file=sys.stderr)
         return 2
+
+
+def _memory_advice() -> str:
+    """What to do when memory ran out, naming the limit that applies where it is known."""
+    try:
+        from nrmlc.resources import memory_ceiling
+
+        ceiling = memory_ceiling()
+    except Exception:  # reading /proc may itself fail this close to the limit
+        ceiling = None
+    where = f" (at most {ceiling[1]})" if ceiling else ""
+    return (f"the run needs more memory than it may take{where}; use fewer workers (--jobs) or smaller "
+            f"parameters (n_particles, patch_size), or raise the limit")
 
 
 def _one_line(error: BaseException) -> str:

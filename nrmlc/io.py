@@ -72,7 +72,50 @@ def _write_target(path: str | os.PathLike) -> Path:
 
 def _prefix(name: str) -> str:
     # Short enough that a legal 255-byte file name still leaves room for ".tmp-" and the random part.
-    return f".tmp-{name[:64]}-"
+    return f".tmp-{cut_to_bytes(name, 64)}-"
+
+
+def cut_to_bytes(name: str, limit: int) -> str:
+    """The longest start of ``name`` whose file-system encoding takes at most ``limit`` bytes,
+    cut between characters (file systems count a name's bytes, not its characters)."""
+    size = 0
+    for index, char in enumerate(name):
+        size += len(os.fsencode(char))
+        if size > limit:
+            return name[:index]
+    return name
+
+
+#: What a file name may hold where the file system does not say (POSIX's usual NAME_MAX).
+DEFAULT_NAME_MAX = 255
+
+
+def name_max(folder: str | os.PathLike) -> int:
+    """Bytes a file name may have in ``folder`` (or in its nearest existing parent): its file
+    system's ``PC_NAME_MAX``, else :data:`DEFAULT_NAME_MAX`."""
+    path = os.path.abspath(os.fspath(folder))
+    while not os.path.isdir(path) and os.path.dirname(path) != path:
+        path = os.path.dirname(path)
+    try:
+        limit = os.pathconf(path, "PC_NAME_MAX")
+    except (AttributeError, OSError, ValueError):
+        return DEFAULT_NAME_MAX
+    return int(limit) if limit and limit > 0 else DEFAULT_NAME_MAX
+
+
+def long_name(path: str | os.PathLike) -> str | None:
+    """Why ``path`` cannot be created (a part of it longer, in bytes, than its file system
+    allows), or None; checked before any work, so that a run is not computed for nothing."""
+    text = os.fspath(path)
+    parts = [part for part in Path(text).parts if part not in (os.sep, "/")]
+    folder = Path(text).parent if os.path.isabs(text) else Path.cwd() / Path(text).parent
+    limit = name_max(folder)
+    for part in parts:
+        size = len(os.fsencode(part))
+        if size > limit:
+            shown = part if len(part) <= 40 else f"{part[:20]}...{part[-12:]}"
+            return f"the name {shown!r} is {size} bytes, more than the {limit} a file name may have there"
+    return None
 
 
 def _fsync_folder(folder: Path) -> None:
@@ -339,6 +382,9 @@ def check_output(path: str | os.PathLike, option: str, inputs: Iterable[str | os
                              f"give a file name")
     if text.endswith((os.sep, "/")) or os.path.basename(text) in (".", ".."):
         raise ParameterError(f"{where}: names a folder; give a file name")
+    too_long = long_name(text)
+    if too_long:
+        raise ParameterError(f"{where}: {too_long}; give a shorter name")
     try:
         info = os.stat(text)
     except FileNotFoundError:
@@ -367,21 +413,74 @@ def check_output(path: str | os.PathLike, option: str, inputs: Iterable[str | os
         folder = _target(folder)
         if folder == target.parent or folder in target.parents:
             raise ParameterError(f"{where}: is inside {folder}, which {folder_role}; write it elsewhere")
-    # The nearest existing folder decides whether the missing ones can be created.
-    folder = target.parent
+    _probe(target.parent, target.name, where)
+    return Path(text)
+
+
+def _probe(folder: Path, name: str, where: str) -> None:
+    """Refuse ``folder`` if it cannot be created or written to: the nearest existing folder
+    decides whether the missing ones can be created (tested by creating and removing a
+    temporary file named after ``name``)."""
     while not folder.exists() and folder != folder.parent:
         folder = folder.parent
     if not folder.is_dir():
         raise ParameterError(f"{where}: {folder} is a file, not a folder")
     try:
-        fd, probe = tempfile.mkstemp(prefix=_prefix(target.name), dir=folder)
+        fd, probe = tempfile.mkstemp(prefix=_prefix(name), dir=folder)
     except OSError as exc:
         raise ParameterError(f"{where}: cannot write to folder {folder} ({exc.strerror or exc})") from None
     try:
         os.close(fd)
     finally:
         os.unlink(probe)  # even if an interrupt lands here
+
+
+def check_folder(path: str | os.PathLike, option: str) -> Path:
+    """Refuse an output folder before any work is done (the folder counterpart of :func:`check_output`).
+
+    Raises
+    ------
+    ParameterError
+        If the path is empty, a file or anything but a folder, a symbolic link to nothing (a
+        folder cannot be created through it), a looping link, too long a name (in bytes), or
+        if it cannot be created or written to. The message names ``path`` as given.
+    """
+    text = os.fspath(path)
+    where = f"{option} {text}"
+    if not text.strip():
+        raise ParameterError(f"{option}: empty path")
+    too_long = long_name(text)
+    if too_long:
+        raise ParameterError(f"{where}: {too_long}; give a shorter name")
+    # Every part of the path, so that a link anywhere along it is seen (mkdir stops at a dangling one).
+    current = Path(text)
+    for part in [current, *current.parents]:
+        if os.path.islink(part) and not os.path.exists(part):
+            if _loops(part):
+                raise ParameterError(f"{where}: symbolic link loop")
+            raise ParameterError(f"{where}: {part} is a symbolic link to {os.readlink(part)}, which does not "
+                                 f"exist; create that folder or give another {option}")
+    try:
+        info = os.stat(text)
+    except FileNotFoundError:
+        info = None
+    except OSError as exc:
+        if exc.errno == errno.ENOTDIR:
+            raise ParameterError(f"{where}: a parent of this path is a file, not a folder") from None
+        raise ParameterError(f"{where}: cannot use this path ({exc.strerror or exc})") from None
+    if info is not None and not stat.S_ISDIR(info.st_mode):
+        raise ParameterError(f"{where}: exists and is not a folder; give a folder")
+    target = _target(text)
+    _probe(target, ".probe", where)
     return Path(text)
+
+
+def _loops(path: str | os.PathLike) -> bool:
+    try:
+        os.stat(path)
+    except OSError as exc:
+        return exc.errno == errno.ELOOP
+    return False
 
 
 def write_bytes(path: str | os.PathLike, data: bytes | bytearray | memoryview | np.ndarray) -> Path:

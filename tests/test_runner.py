@@ -262,8 +262,14 @@ def test_failed_store_leaves_the_run_missing(tmp_path, counted, monkeypatch):
         raise OSError(28, "No space left on device")
 
     monkeypatch.setattr(run_cache.io.np, "savez_compressed", broken)
+    # run() hands the computed run back all the same (its caller keeps it), with one warning ...
+    with pytest.warns(UserWarning, match=r"cannot store runs in the run cache \(.*No space left on device"):
+        [result] = cache.run([spec], jobs=1, progress=False)
+    assert result.boxes.shape == (6, 4) and counted == [spec.label]
+    assert not cache.has(spec) and list(tmp_path.iterdir()) == []
+    # ... ensure(), which returns no results, stops with the error.
     with pytest.raises(OSError):
-        cache.run([spec], jobs=1, progress=False)
+        cache.ensure([spec], jobs=1, progress=False)
     monkeypatch.undo()
     assert not cache.has(spec) and list(tmp_path.iterdir()) == []
     monkeypatch.setattr(pool, "execute_job", lambda spec, threads: fake_arrays(spec))

@@ -290,17 +290,17 @@ class TrackerParams(ExpertParams, GenerativeParams, RedetectionParams, MotionFlo
 
     def _check_memory(self) -> None:
         # The combination matters (particles x templates, particles x patch side^2): each value may be
-        # in range while their product is not. Checked against this machine's RAM, before any work.
-        from nrmlc.resources import gigabytes, physical_memory
+        # in range while their product is not. Checked against the smallest limit that applies (the RAM,
+        # a container's, ulimit -v's), before any work.
+        from nrmlc.resources import gigabytes, memory_ceiling
 
-        limit = physical_memory()
+        ceiling = memory_ceiling()
         need = self.estimated_bytes()
-        if limit is not None and need > limit:
+        if ceiling is not None and need > ceiling[0]:
             terms = self.memory_terms()
             names = max(terms, key=terms.get).split(", ")
             values = ", ".join(f"{name}={getattr(self, name)!r}" for name in names)
-            fail(names[-1], f"with {values} a tracker needs about {gigabytes(need)}, more than this machine's "
-                            f"{gigabytes(limit)} of memory")
+            fail(names[-1], f"with {values} a tracker needs about {gigabytes(need)}, more than {ceiling[1]}")
 
 
 #: Named configurations. 'default' is the tuned tracker (every value chosen on the development

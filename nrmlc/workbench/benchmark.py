@@ -15,20 +15,25 @@ The top-level ``<Seq>.txt`` files are what the OTB toolkits read (got10k's
 the first seed of the first invocation is the *primary* seed stored there, and
 it stays so on later invocations.
 
-Resuming: a run is finished when its entry is in ``benchmark.json`` and its
-result file holds one box per tracked frame; a rerun skips it, whatever
-changed in the code since (an entry whose file is missing or of another
-length is run again, with a warning naming the file).
+Resuming: a run is finished when its entry is in ``benchmark.json``, the entry
+was made from the data the sequence holds now (its content key, the one the run
+cache keys on: :attr:`nrmlc.data.Sequence.identity`), and its result file holds
+one box per tracked frame; a rerun skips it, whatever changed in the code since.
+An entry whose file is missing or of another length, or whose sequence's frames
+or ground truth changed since, is run again, with a warning naming the file.
 The runs themselves go through :class:`nrmlc.workbench.run_cache.RunCache` (``--cache``,
 default ``.cache/runs``), so a run interrupted before its file was written
-is loaded from the cache, not recomputed. All files are written atomically.
+is loaded from the cache, not recomputed; each run is recorded here as soon as
+it is there, and one the cache cannot store (a full disk) is still recorded,
+with a warning. All files are written atomically.
 
 Several invocations may write one folder at once (``--sequences A`` and
 ``--sequences B`` started together): every read-modify-write of
 ``benchmark.json`` happens under an exclusive lock on ``.benchmark.lock`` in
 the folder (``flock``), and each run's entry is merged into the manifest as
 it is on disk, so none loses the other's runs; the summary is written from
-the merged manifest.
+the merged manifest. An invocation that has to wait for the lock says so, and
+names the process holding it.
 
 Nothing the user has is overwritten: an existing folder with ``.txt`` files
 but no ``benchmark.json`` is refused, and so is a folder made with other
@@ -57,6 +62,9 @@ from nrmlc.workbench.manifest import read_manifest
 from nrmlc.workbench.results_layout import (LOCK_NAME, MANIFEST_NAME, SEEDS_FOLDER, SUMMARY_CSV, SUMMARY_JSON,
                                    parse_names, result_file, select_sequences)
 
+#: The entry of a run in the manifest that holds its sequence's content key
+#: (:attr:`nrmlc.data.Sequence.identity`, as the run cache keys on it).
+IDENTITY_FIELD = "sequence_identity"
 #: Per-run scores, in the order of the summary columns.
 SCORE_FIELDS = ("mean_overlap", "mean_center_error", "success_auc", "precision_20")
 _RANGE = re.compile(r"^(\d+)-(\d+)$")
@@ -83,22 +91,37 @@ def parse_seeds(text: str) -> tuple[int, ...]:
     return tuple(dict.fromkeys(seeds))  # in order, without repeats
 
 
-def _check_out_beside_inputs(out: Path, sequences) -> None:
-    """Refuse an ``--out`` that is a sequence folder or inside one: its ``<Seq>.txt`` files would
-    join that sequence (a sequence named ``groundtruth_rect`` would even replace its ground truth)."""
-    target = Path(os.path.realpath(out))
+def _check_beside_inputs(path: Path, sequences, option: str = "--out") -> None:
+    """Refuse an output folder (``--out``, ``--cache``) that is a sequence folder or inside one:
+    ``--out``'s ``<Seq>.txt`` files would join that sequence (a sequence named ``groundtruth_rect``
+    would even replace its ground truth), and files in its ``img/`` would become frames."""
+    target = Path(os.path.realpath(path))
     for sequence in sequences:
         if sequence.path is None:
             continue
         folder = Path(os.path.realpath(sequence.path))
         if target == folder or folder in target.parents:
-            raise ParameterError(f"--out {out}: is inside the sequence folder {sequence.path}; write the results "
-                                 f"elsewhere")
+            raise ParameterError(f"{option} {path}: is inside the sequence folder {sequence.path}; write "
+                                 f"{'the results' if option == '--out' else 'it'} elsewhere")
+
+
+def _check_result_names(out: Path, sequences) -> None:
+    """Refuse, before any run, a sequence whose result file name is longer (in bytes) than the
+    file system of ``out`` allows: its run would be computed and then not written."""
+    for sequence in sequences:
+        problem = io.long_name(out / f"{sequence.name}.txt")
+        if problem:
+            raise DataError(f"{sequence.path or sequence.name}: its result file cannot be written in {out} "
+                            f"({problem}); rename the sequence or leave it out with --sequences")
 
 
 @contextlib.contextmanager
-def _locked(out: Path):
-    """Hold the folder's lock (exclusive ``flock`` on :data:`LOCK_NAME`): one writer of the manifest at a time."""
+def _locked(out: Path, log=None):
+    """Hold the folder's lock (exclusive ``flock`` on :data:`LOCK_NAME`): one writer of the manifest at a time.
+
+    The holder writes its process id and host into the lock file, so that an invocation that has
+    to wait says so, and for whom (through ``log``), instead of hanging without a word.
+    """
     try:
         import fcntl
     except ImportError:  # not POSIX: no lock (one invocation per folder at a time)
@@ -107,10 +130,37 @@ def _locked(out: Path):
     out.mkdir(parents=True, exist_ok=True)
     fd = os.open(out / LOCK_NAME, os.O_RDWR | os.O_CREAT, 0o666)
     try:
-        fcntl.flock(fd, fcntl.LOCK_EX)
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            if log is not None:
+                log(f"benchmark: waiting for {out / LOCK_NAME}, held by {_lock_holder(fd)} "
+                    f"(another benchmark writing into {out})")
+            fcntl.flock(fd, fcntl.LOCK_EX)
+        _write_holder(fd)
         yield
     finally:
         os.close(fd)  # releases the lock
+
+
+def _write_holder(fd: int) -> None:
+    """Put this process's id and host in the held lock file (best effort: only a message reads it)."""
+    import socket
+
+    try:
+        os.ftruncate(fd, 0)
+        os.pwrite(fd, f"pid {os.getpid()} on {socket.gethostname()}\n".encode(), 0)
+    except OSError:
+        pass
+
+
+def _lock_holder(fd: int) -> str:
+    """Who holds the lock, as its holder wrote it (:func:`_write_holder`)."""
+    try:
+        text = os.pread(fd, 200, 0).decode(errors="replace").strip()
+    except OSError:
+        text = ""
+    return text if text.startswith("pid ") else "another process"
 
 
 def _read_manifest(out: Path, settings: dict) -> dict:
@@ -207,7 +257,10 @@ def run_benchmark(data_root, out, params=None, seeds=(0,), sequences: list[str] 
         raise ParameterError("run_benchmark: no seed given")
     out = Path(out)
     data_root = Path(data_root)
+    io.check_folder(out, "--out")
     io.check_output(out / MANIFEST_NAME, "--out")
+    if cache is not None:
+        cache.check_folder()  # asked for by name: refused before any work if it cannot be written
     chosen = select_sequences(data_root, sequences)
     usable = []
     for sequence in chosen:
@@ -220,10 +273,13 @@ def run_benchmark(data_root, out, params=None, seeds=(0,), sequences: list[str] 
     if not usable:
         raise DataError(f"{data_root}: no sequence with a ground-truth box on frame 1 to start from")
     chosen = usable
-    _check_out_beside_inputs(out, chosen)
+    _check_beside_inputs(out, chosen)
+    cache = cache if cache is not None else RunCache()
+    _check_beside_inputs(cache.folder, chosen, "--cache")
+    _check_result_names(out, chosen)
     settings = json.loads(json.dumps({"params": params.as_dict(), "max_frames": max_frames,
                                       "data": str(data_root.resolve())}, default=str))
-    with _locked(out):
+    with _locked(out, log):
         # Settled under the lock, and written at once: a second invocation started alongside
         # sees this one's settings and primary seed.
         manifest = _read_manifest(out, settings)
@@ -232,6 +288,8 @@ def run_benchmark(data_root, out, params=None, seeds=(0,), sequences: list[str] 
             io.write_json(out / MANIFEST_NAME, manifest)
     primary = int(manifest["primary_seed"])
 
+    unrecorded = []  # runs whose entry does not say what data they were made from
+
     def finished(sequence, seed: int) -> bool:
         entry = manifest["runs"].get(sequence.name, {}).get(str(seed))
         if entry is None:
@@ -239,7 +297,13 @@ def run_benchmark(data_root, out, params=None, seeds=(0,), sequences: list[str] 
         path = result_file(out, sequence.name, seed, primary)
         expected = frames_tracked(sequence, max_frames)
         problem = None
-        if not path.is_file():
+        recorded = entry.get(IDENTITY_FIELD)
+        if recorded is None:
+            unrecorded.append(path)
+            return False
+        if recorded != sequence.identity:
+            problem = f"made from other data: the frames or ground truth of {sequence.path or sequence.name} changed since"
+        elif not path.is_file():
             problem = "missing"
         elif entry["frames"] != expected:
             problem = f"its manifest entry says {entry['frames']} frames, the run tracks {expected}"
@@ -257,8 +321,11 @@ def run_benchmark(data_root, out, params=None, seeds=(0,), sequences: list[str] 
 
     todo = [RunSpec(s, params, seed, max_frames, label=s.name) for s in chosen for seed in seeds
             if not finished(s, seed)]
+    if unrecorded:
+        warnings.warn(f"{out / MANIFEST_NAME}: {len(unrecorded)} runs (e.g. {unrecorded[0]}) do not record the data "
+                      f"they were made from (an earlier nrmlc wrote them), so they may be stale; running them again "
+                      f"(from the run cache where it holds them)")
     total = len(chosen) * len(seeds)
-    cache = cache if cache is not None else RunCache()
     # Said before the work starts: a run the shared cache holds takes no time and no worker.
     in_cache = sum(cache.has(spec) for spec in todo)
     log(f"benchmark: {len(chosen)} sequences x {len(seeds)} seeds -> {out}: "
@@ -275,8 +342,10 @@ def run_benchmark(data_root, out, params=None, seeds=(0,), sequences: list[str] 
                 "fps": None if math.isnan(result.fps_tracking) else float(result.fps_tracking),
                 "scores": _scores(result.boxes, spec.sequence),
                 "code_version": version,
+                # The run cache's content key of the sequence: a rerun tells changed data from unchanged.
+                IDENTITY_FIELD: spec.sequence.identity,
             }
-            with _locked(out):
+            with _locked(out, log):
                 # Merged into the manifest as it is now: another invocation may have added runs.
                 current = _read_manifest(out, settings)
                 # The file first, then its entry: an entry always has its file.
@@ -284,20 +353,10 @@ def run_benchmark(data_root, out, params=None, seeds=(0,), sequences: list[str] 
                 current["runs"].setdefault(name, {})[str(spec.seed)] = entry
                 io.write_json(out / MANIFEST_NAME, current)
 
-        try:
-            results = cache.run(todo, executor=executor, jobs=jobs, progress=progress)
-        except BaseException:
-            # A run failed or the user interrupted: record the runs that finished, then let it through.
-            for spec in todo:
-                try:
-                    if cache.has(spec):
-                        record(spec, cache.load(spec))
-                except Exception:  # the original error matters more than a damaged cache file
-                    pass
-            raise
-        for spec, result in zip(todo, results):
-            record(spec, result)
-    with _locked(out):
+        # Each run is recorded as soon as it is there: one that fails later, an interrupt or a cache
+        # that cannot be written loses none of those before it.
+        cache.run(todo, executor=executor, jobs=jobs, progress=progress, on_result=record)
+    with _locked(out, log):
         # From the manifest on disk: it holds the runs of every invocation into this folder.
         manifest = _read_manifest(out, settings)
         summary = summarize(manifest)

@@ -53,6 +53,11 @@ def _count(what: str, value, low: int) -> int:
     return int(value)
 
 
+def _real(array) -> bool:
+    """Whether ``array`` holds real numbers (integers or floats, not text, objects or booleans)."""
+    return np.asarray(array).dtype.kind in "iuf"
+
+
 def frames_tracked(sequence, n_frames: int | None) -> int:
     """Frames a run over ``sequence`` tracks: all of them, or the first ``n_frames`` (at least 1).
 
@@ -193,11 +198,16 @@ class RunSpec(CachedJob):
             shape = np.shape(arrays[name])
             if shape != (n, columns):
                 return f"{name!r} has shape {shape}, expected ({n}, {columns}) for {n} frames"
+            if not _real(arrays[name]):
+                return f"{name!r} holds {np.asarray(arrays[name]).dtype} values, not numbers"
         if not np.isfinite(arrays["boxes"]).all():
             return "non-finite boxes"
         for name in ("seconds_tracking", "seconds_total"):
             if name not in arrays or np.shape(arrays[name]) != ():
                 return f"no {name!r} value"
+            # A run's times are what its fps is computed from: a number of seconds, >= 0.
+            if not _real(arrays[name]) or not np.isfinite(arrays[name]) or arrays[name] < 0:
+                return f"{name!r} is {np.asarray(arrays[name]).tolist()!r}, not a number of seconds"
         return None
 
     def execute(self) -> dict:

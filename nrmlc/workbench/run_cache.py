@@ -40,12 +40,21 @@ DEFAULT_CACHE = Path(".cache") / "runs"
 _DAMAGED = (zipfile.BadZipFile, OSError, ValueError, EOFError, KeyError)
 
 
+def _one_line(error: BaseException) -> str:
+    return " ".join(str(error).split()) or type(error).__name__
+
+
 class RunCache:
     """Results of jobs on disk, ``<folder>/<job.folder>/<job key>.npz``."""
 
     def __init__(self, folder: str | os.PathLike = DEFAULT_CACHE) -> None:
         self.folder = Path(folder)
         self.version = version.code_version()
+
+    def check_folder(self, option: str = "--cache") -> None:
+        """Refuse, before any work, a cache folder that cannot be created or written to
+        (:func:`nrmlc.io.check_folder`; the message names it as ``option``)."""
+        io.check_folder(self.folder, option)
 
     def path(self, job) -> Path:
         return self.folder / job.folder / f"{job.key(self.version)}.npz"
@@ -84,8 +93,11 @@ class RunCache:
         this process's (runs stored before the target was recorded are not counted)."""
         here, others = version.numba_target(), {}
         for path in paths:
+            description = path.with_suffix(".json")
+            if not description.is_file():  # a FIFO there would block the read
+                continue
             try:
-                target = json.loads(path.with_suffix(".json").read_text()).get("computed_for")
+                target = json.loads(description.read_text()).get("computed_for")
             except (OSError, ValueError, AttributeError):
                 continue
             if target is not None and target != here:
@@ -135,8 +147,12 @@ class RunCache:
         return missing
 
     def run(self, specs: list, executor: futures.Executor | None = None, jobs: int | None = None,
-            progress: bool = True) -> list:
+            progress: bool = True, on_result=None) -> list:
         """Make sure every job of ``specs`` is cached, then load them all.
+
+        A run that cannot be stored (a full disk, a cache entry that is a FIFO or a folder) is
+        still returned, with one warning naming the cache: finished work is never thrown away
+        because the cache cannot keep it.
 
         Parameters
         ----------
@@ -147,6 +163,9 @@ class RunCache:
         jobs : int, optional
         progress : bool
             Show progress on stderr.
+        on_result : callable(job, result), optional
+            Called with each distinct job's ``job.result(...)`` as soon as it is there (read
+            from the cache, or computed), so that a caller can keep it before a later run fails.
 
         Returns
         -------
@@ -169,15 +188,29 @@ class RunCache:
             warnings.warn(f"{self.folder}: {sum(others.values())} of the cached runs read were computed for another "
                           f"numba target ({listed}; this process: {version.numba_target()}); a fresh run may give "
                           f"other boxes (docs/RELIABILITY.md#determinism)", stacklevel=2)
+        if on_result is not None:
+            for path, arrays in stored.items():
+                on_result(unique[path], unique[path].result(arrays))
         if missing:
             missing.sort(key=lambda job: -job.frames())  # longest first: no worker left alone at the end
-            for job, arrays in self._compute(missing, executor, jobs, progress):
+
+            def computed(job, arrays) -> None:
                 stored[self.path(job)] = arrays
+                if on_result is not None:
+                    on_result(job, job.result(arrays))
+
+            self._compute(missing, executor, jobs, progress, on_done=computed, keep_unstored=True)
         return [job.result(stored[self.path(job)]) for job in specs]
 
-    def _compute(self, missing: list, executor, jobs, progress) -> list:
-        """Run ``missing``, storing each result as soon as it exists; returns [(job, arrays)]."""
+    def _compute(self, missing: list, executor, jobs, progress, on_done=None, keep_unstored: bool = False) -> list:
+        """Run ``missing``, storing each result as soon as it exists and then passing it to
+        ``on_done(job, arrays)``; returns [(job, arrays)].
+
+        With ``keep_unstored``, a result that cannot be stored (``OSError``) is warned of, once,
+        and kept all the same (the caller has it in memory); else that error ends the batch.
+        """
         done: list = []
+        unstored: list = []
         workers = jobs or os.cpu_count() or 1
         own = executor is None
         if own and any(getattr(job, "uses_kernels", False) for job in missing):
@@ -185,9 +218,19 @@ class RunCache:
         bar = Progress(sum(job.frames() for job in missing), len(missing), enabled=progress)
 
         def finished(job, arrays: dict) -> None:
-            self.store(job, arrays)
+            try:
+                self.store(job, arrays)
+            except OSError as exc:
+                if not keep_unstored:
+                    raise
+                if not unstored:
+                    warnings.warn(f"{self.folder}: cannot store runs in the run cache ({_one_line(exc)}); the results "
+                                  f"are kept but not cached, so a later run computes them again", stacklevel=4)
+                unstored.append(job)
             done.append((job, arrays))
             bar.update(job.frames(), getattr(job, "label", ""))
+            if on_done is not None:
+                on_done(job, arrays)
 
         try:
             if own and workers == 1:
@@ -206,8 +249,11 @@ class RunCache:
                     error = future.exception()
                     if error is None:
                         # Stored even after another run failed: finished work is never thrown away.
-                        finished(pending[future], future.result())
-                    elif failure is None:
+                        try:
+                            finished(pending[future], future.result())
+                        except Exception as exc:  # the caller's keeping of it failed: as a failed run
+                            error = exc
+                    if error is not None and failure is None:
                         failure = error
                         for other in pending:  # runs not started yet; those running still finish
                             other.cancel()
