@@ -9,8 +9,11 @@ checked on the files: Car4 is IV and SV, Deer MB, FM, IPR, BC and LR):
     BC background clutter, LR low resolution.
 
 A sequence's file is found as its result files are (:func:`nrmlc.workbench.otb_results.sequence_key`:
-``Skating2.1.txt`` is Skating2-1's, ``jogging-1.txt`` Jogging-1's); a two-target sequence
-without a file of its own takes its folder's (``Jogging.txt`` for Jogging-1 and Jogging-2).
+``Skating2.1.txt`` is Skating2-1's, ``jogging-1.txt`` Jogging-1's, ``Car4.TXT`` Car4's); a two-target
+sequence without a file of its own takes its folder's (``Jogging.txt`` for Jogging-1 and Jogging-2).
+A sequence without a file is left out of every attribute, with a note; a file that is malformed,
+a broken link, a FIFO, a folder or larger than :data:`MAX_ATTRIBUTE_BYTES` stops the command with
+one line naming it.
 
 A tracker's score on an attribute is the toolkit's: the mean of its per-sequence success (and
 precision) curves over the scored sequences that have the attribute, AUC the mean of that
@@ -30,6 +33,7 @@ import numpy as np
 from nrmlc import io
 from nrmlc.errors import DataError
 from nrmlc.workbench.otb_results import sequence_key
+from nrmlc.workbench.results_layout import check_input_file, has_suffix, reading
 
 #: (code, name) in the order of the flags in the benchmark's attribute files.
 ATTRIBUTES = (
@@ -46,6 +50,10 @@ ATTRIBUTES = (
     ("LR", "low resolution"),
 )
 _SPLIT = re.compile(r"[,\s]+")
+#: An attribute file's extension (any case: ``Car4.TXT`` is Car4's).
+ATTRIBUTE_SUFFIX = ".txt"
+#: Largest attribute file read (11 flags take 22 bytes; room for any spacing).
+MAX_ATTRIBUTE_BYTES = 64 << 10
 _TARGET = re.compile(r"^(.+)-\d+$")
 
 
@@ -55,11 +63,17 @@ def read_attribute_file(path) -> frozenset:
     Raises
     ------
     DataError
-        Naming the file, for anything but 11 values of 0 or 1.
+        Naming the file, for anything but 11 values of 0 or 1, a missing file, a broken link, a
+        FIFO or a folder.
+    InputTooLarge
+        For a file of more than :data:`MAX_ATTRIBUTE_BYTES`.
     """
     path = Path(path)
+    if not check_input_file(path, "attribute file", MAX_ATTRIBUTE_BYTES):
+        raise DataError(f"{path}: attribute file not found")
     try:
-        text = path.read_text(encoding="utf-8-sig")
+        with reading(path, "attribute file"):
+            text = path.read_text(encoding="utf-8-sig")
     except (OSError, UnicodeDecodeError) as exc:
         raise DataError(f"{path}: cannot read the attribute file ({exc})") from None
     fields = [f for f in _SPLIT.split(text.strip()) if f]
@@ -87,14 +101,19 @@ def read_attributes(folder, sequence_names) -> tuple[dict, list]:
     Raises
     ------
     DataError
-        The folder is missing; a file is malformed; two files name one sequence.
+        The folder is missing; a file is malformed, a broken link, a FIFO or a folder; two files
+        name one sequence.
+    InputTooLarge
+        A file of more than :data:`MAX_ATTRIBUTE_BYTES`.
     """
     folder = Path(folder)
     if not folder.is_dir():
         raise DataError(f"{folder}: attribute folder {'is not a folder' if folder.exists() else 'not found'}")
     files: dict = {}
-    for path in sorted(folder.glob("*.txt")):
-        if path.is_file() and not path.name.startswith("."):
+    # Whatever the entry is: reading it refuses a link to nothing or a FIFO by name, where skipping
+    # it would leave its sequence out of every attribute.
+    for path in sorted(folder.iterdir()):
+        if has_suffix(path, ATTRIBUTE_SUFFIX):
             files.setdefault(sequence_key(path.stem), []).append(path)
     attributes, absent = {}, []
     for name in sequence_names:

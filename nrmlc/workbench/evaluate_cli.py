@@ -11,11 +11,16 @@ table, CSV and plots: :mod:`nrmlc.workbench.report`.
 
 ``nrmlc.cli`` builds the command line; this module adds the folder form's options
 (:func:`add_evaluate_arguments`) and runs either form (:func:`run_evaluate_file`,
-:func:`run_evaluate_folders`). Outputs are checked before any work: none may be an input.
+:func:`run_evaluate_folders`). Outputs are checked before any work: none may be an input. They are
+written together (:class:`nrmlc.io.Together`): an interrupt, a full disk or a refused
+``--speed-plot`` leaves every earlier file as it was, never a new CSV beside an old plot.
+Memory running out is a one-line error naming the file being read, never a tracker scored as
+failing (:mod:`nrmlc.workbench.results_layout`).
 """
 from __future__ import annotations
 
 import argparse
+import functools
 import json
 import sys
 import warnings
@@ -26,9 +31,10 @@ import numpy as np
 
 from nrmlc import io
 from nrmlc.errors import DataError, ParameterError
+from nrmlc.data.boxes import MAX_BOX_FILE_BYTES
 from nrmlc.workbench.find import parse_name_map, split_results_entry
 from nrmlc.workbench.report import check_plot_path, format_table, plot_comparison, write_csv
-from nrmlc.workbench.results_layout import parse_names
+from nrmlc.workbench.results_layout import InputTooLarge, check_input_file, parse_names, reading
 from nrmlc.workbench.score import MISSING_RULE, Comparison, TrackerScores, compare
 
 #: The output options of ``evaluate``, in the order they are checked.
@@ -140,7 +146,9 @@ def _file_boxes(path) -> np.ndarray:
     from nrmlc.data import read_box_file
 
     if Path(path).suffix.lower() != ".mat":
-        return read_box_file(path, predictions=True)
+        check_input_file(path, "result file", MAX_BOX_FILE_BYTES)  # absent: the reader says "not found"
+        with reading(path, "result file"):
+            return read_box_file(path, predictions=True)
     from nrmlc.workbench.otb_results import read_otb_result
 
     result = read_otb_result(path)
@@ -152,6 +160,21 @@ def _file_boxes(path) -> np.ndarray:
     return boxes
 
 
+def _memory_is_an_error(run):
+    """``run``, with memory running out anywhere in it a one-line error (exit status 2), never a
+    traceback; the readers name the file when it runs out there (:func:`~nrmlc.workbench.results_layout.reading`)."""
+    @functools.wraps(run)
+    def guarded(args):
+        try:
+            return run(args)
+        except MemoryError:
+            raise InputTooLarge("evaluate: ran out of memory; nothing written (free memory, or score fewer "
+                                "sequences or trackers at once)") from None
+
+    return guarded
+
+
+@_memory_is_an_error
 def run_evaluate_file(args: EvaluateOptions) -> int:
     """``evaluate --results R.txt|R.mat --groundtruth G.txt``: the scores, each with the frames behind it."""
     from nrmlc.data import read_box_file
@@ -205,13 +228,15 @@ def run_evaluate_file(args: EvaluateOptions) -> int:
                                 evaluations={sequence: result})
         comparison = Comparison([sequence], [tracker], max_frames=None,
                                 scope={"seeds": {}, "sequences_from": None, "max_frames_from": None})
-        if args.csv:
-            write_csv(comparison, args.csv)
-        if args.plot:
-            plot_comparison(comparison, args.plot)
+        with _Outputs() as outputs:
+            if args.csv:
+                write_csv(comparison, outputs.stage(args.csv))
+            if args.plot:
+                plot_comparison(comparison, outputs.stage(args.plot))
     return 0
 
 
+@_memory_is_an_error
 def run_evaluate_folders(args: EvaluateOptions) -> int:
     """``evaluate --results DIR [DIR ...] --data DATA ...``: table on stdout, notes on stderr."""
     if args.groundtruth:
@@ -232,7 +257,9 @@ def run_evaluate_folders(args: EvaluateOptions) -> int:
 
         attributes, notes = read_attributes(args.attributes, comparison.sequences)
         scores = attribute_scores(comparison, attributes)
-    for note in comparison.notes + notes + [f"{t.name}: {n}" for t in comparison.trackers for n in t.notes]:
+    written, speed_notes = _write_outputs(args, comparison, scores)
+    for note in comparison.notes + notes + [f"{t.name}: {n}" for t in comparison.trackers for n in t.notes] \
+            + speed_notes:
         print(f"note: {note}", file=sys.stderr)
     if args.json:
         result = comparison.as_dict()
@@ -247,23 +274,54 @@ def run_evaluate_folders(args: EvaluateOptions) -> int:
 
             print()
             print(format_attribute_table(comparison, scores))
-    if args.csv:
-        from nrmlc.workbench.attributes import attribute_csv_rows
-
-        write_csv(comparison, args.csv, attribute_csv_rows(scores))
-    if args.plot:
-        plot_comparison(comparison, args.plot)
-        print(f"plots: {args.plot}", file=sys.stderr)
-    if args.attribute_plot:
-        from nrmlc.workbench.attributes import plot_attributes
-
-        plot_attributes(comparison, scores, args.attribute_plot)
-        print(f"attribute plot: {args.attribute_plot}", file=sys.stderr)
-    if args.speed_plot:
-        from nrmlc.workbench.speed import plot_speed
-
-        _, left_out = plot_speed(comparison, args.speed_plot)
-        for note in left_out:
-            print(f"note: {note}", file=sys.stderr)
-        print(f"speed plot: {args.speed_plot}", file=sys.stderr)
+    for line in written:
+        print(line, file=sys.stderr)
     return 0
+
+
+class _Outputs(io.Together):
+    """:class:`nrmlc.io.Together` for writers that take a path: each output is drawn into a
+    temporary file beside it (:meth:`stage`), and all are renamed over their targets together."""
+
+    def stage(self, path) -> Path:
+        """A temporary file with ``path``'s extension, committed to ``path`` with the others."""
+        tmp = io.temporary_for(path)
+        self.file(tmp, path)
+        return tmp
+
+
+def _write_outputs(args: EvaluateOptions, comparison: Comparison, scores: list) -> tuple[list, list]:
+    """Every output of the folder form, all or none: the speed plot, which can be refused, first.
+
+    Returns
+    -------
+    written : list of str
+        One line per plot written, for stderr.
+    notes : list of str
+        The speed plot's notes (trackers left out).
+    """
+    from nrmlc.errors import interrupt_requested
+
+    written, notes = [], []
+    with _Outputs() as outputs:
+        if args.speed_plot:
+            from nrmlc.workbench.speed import plot_speed
+
+            _, notes = plot_speed(comparison, outputs.stage(args.speed_plot))
+        if args.csv:
+            from nrmlc.workbench.attributes import attribute_csv_rows
+
+            write_csv(comparison, outputs.stage(args.csv), attribute_csv_rows(scores))
+        if args.plot:
+            plot_comparison(comparison, outputs.stage(args.plot))
+            written.append(f"plots: {args.plot}")
+        if args.attribute_plot:
+            from nrmlc.workbench.attributes import plot_attributes
+
+            plot_attributes(comparison, scores, outputs.stage(args.attribute_plot))
+            written.append(f"attribute plot: {args.attribute_plot}")
+        if args.speed_plot:
+            written.append(f"speed plot: {args.speed_plot}")
+        if interrupt_requested.is_set():
+            raise KeyboardInterrupt  # a signal whose KeyboardInterrupt a finaliser swallowed
+    return written, notes

@@ -15,10 +15,18 @@ Finding a sequence's file in a folder
     pass, one with exactly one line per frame wins over one with another
     line count.
 
+    Extensions match in any case (``Car4.TXT`` is Car4's file); names starting with a dot (a
+    writer's hidden temporary file) are never results. A candidate that is a broken link, a
+    FIFO or a folder is refused by name, never taken for an absent file, and so is one larger
+    than a box file can be (:data:`nrmlc.data.boxes.MAX_BOX_FILE_BYTES`); memory running out
+    while one is read stops the command (never a tracker scored as failing).
+
 Other result layouts
-    A folder of the OTB toolkit's own ``<Seq>_<Tracker>.mat`` files (and no ``.txt``) is one
-    tracker per ``<Tracker>`` (:mod:`nrmlc.workbench.otb_results`); ``DIR:A,B`` or ``--otb-trackers A,B``
-    selects some. Sequence names match without regard to case and to the benchmark's spellings
+    A folder of the OTB toolkit's own ``<Seq>_<Tracker>.mat`` files is one tracker per
+    ``<Tracker>`` (:mod:`nrmlc.workbench.otb_results`); ``DIR:A,B`` or ``--otb-trackers A,B``
+    selects some. A folder that holds both kinds is read as the kind whose files name sequences
+    (:func:`reads_as_otb`: a ``readme.txt`` does not make a folder of ``.mat`` files a folder of
+    ``.txt`` results). Sequence names match without regard to case and to the benchmark's spellings
     of a target number (``Skating2.1`` is ``Skating2-1``, :func:`nrmlc.workbench.otb_results.sequence_key`);
     two files of one folder level that name the same sequence (``car4.txt``, ``Car4.txt``) are
     refused.
@@ -28,14 +36,20 @@ other seeds' results in ``seeds/<seed>/`` (:func:`seed_folders`).
 """
 from __future__ import annotations
 
-import json
+import os
 from pathlib import Path
 
 import numpy as np
 
+from nrmlc.data.boxes import MAX_BOX_FILE_BYTES
 from nrmlc.errors import DataError, ParameterError
-from nrmlc.workbench.otb_results import is_otb_results_folder, select_trackers, sequence_key
-from nrmlc.workbench.results_layout import MANIFEST_NAME, SEEDS_FOLDER
+from nrmlc.workbench.manifest import read_manifest as load_manifest
+from nrmlc.workbench.otb_results import has_otb_results, otb_sequences, select_trackers, sequence_key
+from nrmlc.workbench.results_layout import (MANIFEST_NAME, SEEDS_FOLDER, InputTooLarge, check_input_file, has_suffix,
+                                            reading)
+
+#: A result file's extension (any case: ``Car4.TXT`` is Car4's).
+RESULT_SUFFIX = ".txt"
 
 
 def parse_name_map(items) -> dict:
@@ -59,7 +73,10 @@ def _candidates(folder: Path, sequence_name: str, name_map: dict) -> list[Path]:
     ------
     DataError
         For two files of one folder whose names differ only by case or by the spelling of a
-        target number (``car4.txt``, ``Car4.txt``): which one is meant cannot be known.
+        target number (``car4.txt``, ``Car4.TXT``): which one is meant cannot be known; for a
+        candidate that is a broken link, a FIFO or a folder (never taken for an absent file).
+    InputTooLarge
+        For a candidate larger than a box file can be.
     """
     key = sequence_key(sequence_name)
     stems = {key} | {sequence_key(stem) for stem, target in name_map.items() if sequence_key(target) == key}
@@ -67,7 +84,8 @@ def _candidates(folder: Path, sequence_name: str, name_map: dict) -> list[Path]:
                                 key=lambda p: p.name)
     found = []
     for where in folders:
-        here = sorted(p for p in where.glob("*.txt") if sequence_key(p.stem) in stems and p.is_file())
+        here = sorted(p for p in where.iterdir() if has_suffix(p, RESULT_SUFFIX) and sequence_key(p.stem) in stems
+                      and check_input_file(p, "result file", MAX_BOX_FILE_BYTES))
         by_stem: dict = {}
         for path in here:
             by_stem.setdefault(sequence_key(path.stem), []).append(path)
@@ -100,7 +118,10 @@ def find_result(folder, sequence, name_map=None, max_frames: int | None = None):
     notes, fitting = [], []
     for path in _candidates(folder, sequence.name, name_map or {}):
         try:
-            boxes = read_box_file(path, predictions=True)
+            with reading(path, "result file"):
+                boxes = read_box_file(path, predictions=True)
+        except InputTooLarge:
+            raise  # a resource limit, not the tracker's failure: never scored
         except DataError as exc:
             notes.append(f"{path}: not used, unreadable ({exc})")
             continue
@@ -141,19 +162,32 @@ def split_results_entry(entry) -> tuple[Path, list[str] | None]:
     return Path(folder), names
 
 
-def result_sources(entries, otb_trackers=None) -> list[tuple[str, Path, str | None]]:
+def result_sources(entries, otb_trackers=None, sequence_keys=None, notes=None) -> list[tuple[str, Path, str | None]]:
     """One ``(name, folder, OTB tracker or None)`` per tracker of the ``--results`` entries.
 
     A folder of ``<Seq>.txt`` files is one tracker named after the folder; a folder of OTB
     ``<Seq>_<Tracker>.mat`` files is one tracker per ``<Tracker>`` (those of ``DIR:A,B``, else
-    those of ``otb_trackers``, else all), named ``<Tracker>``.
+    those of ``otb_trackers``, else all), named ``<Tracker>``. Which of the two a folder holding
+    both kinds is: :func:`reads_as_otb`.
+
+    Parameters
+    ----------
+    entries : list of str or Path
+        ``DIR`` or ``DIR:A,B``.
+    otb_trackers : list of str, optional
+    sequence_keys : set of str, or a callable returning one, optional
+        The :func:`~nrmlc.workbench.otb_results.sequence_key` of every sequence that may be
+        scored (and of the file stems ``--name-map`` maps to them); asked for only when a folder
+        holds both kinds.
+    notes : list, optional
+        Gets one line per folder that holds both kinds.
     """
     sources = []
     for entry in entries:
         folder, wanted = split_results_entry(entry)
         if not folder.is_dir():
             raise DataError(f"{folder}: result folder {'is not a folder' if folder.exists() else 'not found'}")
-        if is_otb_results_folder(folder):
+        if reads_as_otb(folder, wanted is not None, sequence_keys, notes if notes is not None else []):
             for tracker in select_trackers(folder, wanted or otb_trackers):
                 sources.append((tracker, folder, tracker))
         elif wanted is not None:
@@ -164,33 +198,73 @@ def result_sources(entries, otb_trackers=None) -> list[tuple[str, Path, str | No
     return sources
 
 
+def reads_as_otb(folder: Path, selected: bool, sequence_keys=None, notes=None) -> bool:
+    """Whether ``folder`` is read as OTB ``<Seq>_<Tracker>.mat`` results rather than ``<Seq>.txt`` ones.
+
+    Decided by what it holds: a folder without such ``.mat`` files, or with a ``benchmark.json``,
+    holds ``<Seq>.txt`` results; one whose trackers are selected (``DIR:A,B``), or without a
+    ``.txt`` file that names a sequence (a ``readme.txt``), holds ``.mat`` results. A folder with
+    files of both kinds that name sequences is read as the kind that covers more sequences (the
+    ``.txt`` files on a tie), and ``notes`` gets one line saying so.
+
+    Parameters
+    ----------
+    folder : Path
+    selected : bool
+        Whether trackers of it were selected by name (``DIR:A,B``).
+    sequence_keys : set of str, or a callable returning one, optional
+        Keys of the sequences that may be scored (default: every name counts).
+    notes : list, optional
+    """
+    if not has_otb_results(folder):
+        return False
+    if selected:
+        return True
+    if os.path.lexists(folder / MANIFEST_NAME):
+        return False
+    stems = [p.stem for p in folder.iterdir() if has_suffix(p, RESULT_SUFFIX)]
+    if not stems:
+        return True
+    keys = sequence_keys() if callable(sequence_keys) else sequence_keys
+
+    def covered(names) -> set:
+        found = {sequence_key(name) for name in names}
+        return found if keys is None else found & set(keys)
+
+    texts, mats = covered(stems), covered(otb_sequences(folder))
+    if not texts or not mats:
+        return not texts
+    as_otb = len(mats) > len(texts)
+    if notes is not None:
+        notes.append(f"{folder}: holds both <Seq>.txt results ({len(texts)} sequences) and OTB <Seq>_<Tracker>.mat "
+                     f"results ({len(mats)} sequences); read as "
+                     + ("the .mat files (the kind that covers more)" if as_otb else
+                        "a folder of <Seq>.txt files (the kind that covers as many or more; DIR:TRACKER reads "
+                        "its .mat files)"))
+    return as_otb
+
+
 def read_manifest(folder) -> dict | None:
-    """The ``benchmark.json`` of a ``nrmlc benchmark`` folder, None for any other folder.
+    """The checked ``benchmark.json`` of a ``nrmlc benchmark`` folder, None for any other folder.
+
+    The runs whose result file is not there are left out of it (:mod:`nrmlc.workbench.manifest`).
 
     Raises
     ------
     DataError
-        For a ``benchmark.json`` that is not a benchmark manifest.
+        For a ``benchmark.json`` that is not a benchmark manifest (the one check ``nrmlc
+        benchmark`` makes too), or that is a broken link, a FIFO or a folder.
     """
-    path = Path(folder) / MANIFEST_NAME
-    if not path.is_file():
-        return None
-    try:
-        manifest = json.loads(path.read_text())
-        settings, runs = manifest["settings"], manifest.get("runs", {})
-        if not isinstance(settings, dict) or not isinstance(runs, dict):
-            raise TypeError("settings and runs must be objects")
-    except (OSError, ValueError, KeyError, TypeError) as exc:
-        raise DataError(f"{path}: not a benchmark manifest ({exc})") from None
-    return manifest
+    found = load_manifest(folder)
+    return None if found is None else found.data
 
 
 def primary_seed(folder) -> str:
-    """The seed of a ``nrmlc benchmark`` folder's top-level files ("" if it does not say)."""
-    try:
-        return str(json.loads((Path(folder) / MANIFEST_NAME).read_text())["primary_seed"])
-    except (OSError, ValueError, KeyError, TypeError):
+    """The seed of a ``nrmlc benchmark`` folder's top-level files ("" if it has no manifest, or none yet)."""
+    manifest = read_manifest(folder)
+    if manifest is None or manifest.get("primary_seed") is None:
         return ""
+    return str(manifest["primary_seed"])
 
 
 def seed_folders(folder) -> list[Path]:

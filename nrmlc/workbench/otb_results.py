@@ -34,6 +34,17 @@ Frames
     by the previous row before scoring (TLD's lost frames); here such a row stays a failed
     frame, as in every result this package scores.
 
+Malformed and over-large files
+    A file that cannot be read as an OTB result (damaged, a field of the wrong kind: text or a
+    struct where numbers belong, a ``type`` that is not text) is not used, with a note naming it
+    and the field; the sequence then has no result from that tracker. A ``type`` that is text
+    but not converted here, a file of more than :data:`MAX_MAT_BYTES`, variables of more than
+    :data:`MAX_MAT_CONTENT_BYTES` once decompressed (checked before loading) or memory running
+    out while one is read stop the command with one line naming the file: scoring the tracker
+    as failing there would be wrong. The extension is matched without regard to case
+    (``Biker_IVT.MAT``); a broken link, a FIFO or a folder by a result file's name is refused
+    by name, never taken for an absent file.
+
 Which file is a sequence's
     ``<Seq>`` is matched without regard to case and to the benchmark's spellings of a target
     number (:func:`sequence_key`): ``Skating2.1``, ``Skating2_1`` and ``Skating2-1`` are one
@@ -47,19 +58,26 @@ from __future__ import annotations
 import functools
 import math
 import re
+import struct
+import zlib
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
 from nrmlc.errors import DataError, ParameterError
+from nrmlc.workbench.manifest import MAX_FPS
+from nrmlc.workbench.results_layout import InputTooLarge, check_input_file, has_suffix, reading
 
 MAT_SUFFIX = ".mat"
+#: Largest ``.mat`` result file read (the benchmark's largest is 116 kB).
+MAX_MAT_BYTES = 64 << 20
+#: Most bytes a ``.mat`` file's variables may take once decompressed, checked before loading.
+MAX_MAT_CONTENT_BYTES = 256 << 20
 #: The ``type`` values converted here (the toolkit's ``calcSeqErrRobust`` knows more).
 SUPPORTED_TYPES = ("rect", "ivtAff", "L1Aff")
 class UnsupportedResultType(DataError):
     """A result file whose ``type`` this reader does not convert (refused, never scored as failures)."""
-
 
 
 # "Skating2.1", "Skating2_1", "jogging-1": a name, one separator, a target number.
@@ -101,21 +119,29 @@ def _result_files(folder) -> list[tuple[Path, str, str]]:
 
 @functools.lru_cache(maxsize=16)
 def _listing(folder: str, stamp: int) -> tuple:
+    # Whatever the entry is (a link to nothing, a FIFO): looking its file up refuses it by name,
+    # where skipping it here would turn it into "no result file".
     found = []
-    for path in sorted(Path(folder).glob(f"*{MAT_SUFFIX}")):
-        parts = split_result_name(path.stem)
-        if parts is not None and not path.name.startswith(".") and path.is_file():
+    for path in sorted(Path(folder).iterdir()):
+        parts = split_result_name(path.stem) if has_suffix(path, MAT_SUFFIX) else None
+        if parts is not None:
             found.append((path, *parts))
     return tuple(found)
 
 
-def is_otb_results_folder(folder) -> bool:
-    """True for a folder of ``<Seq>_<Tracker>.mat`` files and no ``.txt`` result files.
+def has_otb_results(folder) -> bool:
+    """True for a folder that holds ``<Seq>_<Tracker>.mat`` files (any case of ``.mat``).
 
-    A folder that also holds ``.txt`` files is read as a folder of ``<Seq>.txt`` files, as before.
+    Whether it is read as such when it also holds ``<Seq>.txt`` files:
+    :func:`nrmlc.workbench.find.result_sources`.
     """
     folder = Path(folder)
-    return folder.is_dir() and bool(_result_files(folder)) and not any(folder.glob("*.txt"))
+    return folder.is_dir() and bool(_result_files(folder))
+
+
+def otb_sequences(folder) -> list[str]:
+    """The ``<Seq>`` parts of a folder's ``<Seq>_<Tracker>.mat`` files, as written, once each."""
+    return list(dict.fromkeys(sequence for _, sequence, _ in _result_files(folder)))
 
 
 def otb_trackers(folder) -> list[str]:
@@ -172,7 +198,8 @@ class OtbResult:
     declared_length : int or None
         The file's ``len``.
     fps : float or None
-        The file's ``fps`` (None when absent, not finite or not positive).
+        The file's ``fps`` (None when absent, not finite, not positive or beyond
+        :data:`nrmlc.workbench.manifest.MAX_FPS`).
     """
 
     path: Path
@@ -201,24 +228,33 @@ def _struct_fields(struct) -> dict:
     return {name: struct[name] for name in struct.dtype.names}
 
 
+def _numbers(value, path, field) -> np.ndarray:
+    """The numbers of a field (a matrix of any numeric class, or a cell holding one), flat, as float64.
+
+    Raises
+    ------
+    DataError
+        Naming the file and the field, for text, a struct, a cell of several things.
+    """
+    array = np.asarray(_first(value))
+    if array.dtype.kind not in "biuf":
+        kind = "a struct" if array.dtype.names else "text" if array.dtype.kind in "US" else str(array.dtype)
+        raise DataError(f"{path}: field '{field}' is not numeric ({kind})")
+    return array.astype(np.float64).ravel()
+
+
 def _scalar(value, path, field):
     """A real number from a field (a 1x1 matrix of any numeric class), None when empty."""
-    value = _first(value)
-    array = np.asarray(value)
-    if array.size == 0:
-        return None
-    try:
-        return float(array.astype(np.float64).ravel()[0])
-    except (TypeError, ValueError):
-        raise DataError(f"{path}: field '{field}' is not a number ({array.dtype})") from None
+    numbers = _numbers(value, path, field)
+    return float(numbers[0]) if numbers.size else None
 
 
-def _text(value) -> str:
-    value = _first(value)
-    array = np.asarray(value)
-    if array.dtype.kind in "US":
-        return "".join(str(s) for s in array.ravel()).strip()
-    return str(value).strip()
+def _text(value, path, field) -> str:
+    """The text of a field (a char array); anything else is a malformed field, not an unknown type."""
+    array = np.asarray(_first(value))
+    if array.dtype.kind not in "US" or array.size == 0:
+        raise DataError(f"{path}: field '{field}' is not text ({'empty' if array.size == 0 else array.dtype})")
+    return "".join(str(s) for s in array.ravel()).strip()
 
 
 def _frame_number(value, path, field) -> int:
@@ -303,20 +339,37 @@ def read_otb_result(path) -> OtbResult:
     ------
     DataError
         Naming the file: not a MAT file MATLAB v5-v7.2 can hold (v7.3 HDF5 files are not read),
-        no ``results`` (or ``result``) variable, a missing or malformed field, a ``type`` not in
-        :data:`SUPPORTED_TYPES`.
+        no ``results`` (or ``result``) variable, a missing or malformed field (text or a struct
+        where numbers belong), a broken link, a FIFO or a folder.
+    UnsupportedResultType
+        For a ``type`` not in :data:`SUPPORTED_TYPES`.
+    InputTooLarge
+        For a file of more than :data:`MAX_MAT_BYTES`, variables of more than
+        :data:`MAX_MAT_CONTENT_BYTES` once decompressed, or memory running out reading it.
     """
+    path = Path(path)
+    if not check_input_file(path, "OTB result file", MAX_MAT_BYTES):
+        raise DataError(f"{path}: result file not found")
+    _check_content_size(path)
+    with reading(path, "OTB result file"):
+        return _convert(path, _load(path))
+
+
+def _load(path: Path) -> dict:
     import scipy.io
 
-    path = Path(path)
     try:
-        content = scipy.io.loadmat(str(path))
-    except FileNotFoundError:
-        raise DataError(f"{path}: result file not found") from None
+        return scipy.io.loadmat(str(path))
+    except MemoryError:
+        raise  # a resource limit, not a damaged file (:func:`reading` names it)
     except NotImplementedError:  # MATLAB v7.3 (HDF5)
         raise DataError(f"{path}: a MATLAB v7.3 (HDF5) file; save it with -v7 to read it here") from None
     except Exception as exc:  # scipy raises ValueError, TypeError, MatReadError... for a damaged file
         raise DataError(f"{path}: not a readable MAT file ({type(exc).__name__}: {exc})") from None
+
+
+def _convert(path: Path, content: dict) -> OtbResult:
+    """The boxes and fields of a loaded ``.mat`` file (see the module docstring)."""
     if "results" not in content and "result" in content:
         boxes = _matrix(content["result"], path, 4, "'result'")
         return OtbResult(path, "rect", boxes, 0, 1, 1, None, None)
@@ -329,7 +382,7 @@ def read_otb_result(path) -> OtbResult:
     if "res" not in fields or "type" not in fields:
         raise DataError(f"{path}: results{{1}} lacks field {'res' if 'res' not in fields else 'type'} "
                         f"(fields: {', '.join(fields)})")
-    kind = _text(fields["type"])
+    kind = _text(fields["type"], path, "type")
     if kind not in SUPPORTED_TYPES:
         raise UnsupportedResultType(f"{path}: result type '{kind}' is not supported (only {', '.join(SUPPORTED_TYPES)})")
     if kind == "rect":
@@ -338,19 +391,79 @@ def read_otb_result(path) -> OtbResult:
         states = _matrix(fields["res"], path, 6, "res")
         if "tmplsize" not in fields:
             raise DataError(f"{path}: type '{kind}' needs the field tmplsize (the template's size)")
-        size = np.asarray(_first(fields["tmplsize"]) if fields["tmplsize"].dtype == object
-                          else fields["tmplsize"]).astype(np.float64).ravel()
+        size = _numbers(fields["tmplsize"], path, "tmplsize")
         if size.size != 2 or not np.all(np.isfinite(size)) or np.any(size <= 0):
-            raise DataError(f"{path}: tmplsize must be two positive numbers, got {size.tolist()}")
-        boxes = (ivt_affine_boxes if kind == "ivtAff" else l1_affine_boxes)(states, size)
+            raise DataError(f"{path}: tmplsize must be two positive numbers, got {size.tolist()[:4]}")
+        # Huge or infinite states give non-finite boxes: failed frames, scored as such.
+        with np.errstate(over="ignore", invalid="ignore"):
+            boxes = (ivt_affine_boxes if kind == "ivtAff" else l1_affine_boxes)(states, size)
     start = _frame_number(fields.get("startFrame", np.empty(0)), path, "startFrame")
     anno_begin = _frame_number(fields.get("annoBegin", np.empty(0)), path, "annoBegin")
     length = _scalar(fields.get("len", np.empty(0)), path, "len")
     fps = _scalar(fields.get("fps", np.empty(0)), path, "fps")
-    fps = fps if fps is not None and math.isfinite(fps) and fps > 0 else None
+    fps = fps if fps is not None and math.isfinite(fps) and 0 < fps <= MAX_FPS else None
     boxes.setflags(write=False)
     return OtbResult(path, kind, boxes, start - anno_begin, start, anno_begin,
                      None if length is None or not math.isfinite(length) else int(length), fps)
+
+
+# MAT v5 data element types (MATLAB's "MAT-File Format"): a variable is one of these two at the top level.
+_MI_MATRIX, _MI_COMPRESSED = 14, 15
+
+
+def _check_content_size(path: Path) -> None:
+    """Refuse, before loading, a ``.mat`` file whose variables take more than
+    :data:`MAX_MAT_CONTENT_BYTES` (a few hundred kB of zeros can decompress to gigabytes).
+
+    Each top-level variable of a v5 file is walked: an uncompressed one declares its size, a
+    compressed one is inflated and counted (and dropped), never more than the limit. Files that
+    are not v5 (v4: uncompressed, within the file's size; v7.3 and damaged ones: the loader
+    refuses them) are left to the loader.
+
+    Raises
+    ------
+    InputTooLarge
+    """
+    with open(path, "rb") as handle:
+        header = handle.read(128)
+        if len(header) < 128 or header[126:128] not in (b"IM", b"MI"):
+            return
+        order = "<" if header[126:128] == b"IM" else ">"
+        if struct.unpack(order + "H", header[124:126])[0] != 0x0100:
+            return
+        total = 0
+        while total <= MAX_MAT_CONTENT_BYTES:
+            tag = handle.read(8)
+            if len(tag) < 8:
+                return
+            kind, n_bytes = struct.unpack(order + "II", tag)
+            if kind >> 16:  # a small element: its data is in the tag
+                continue
+            if kind == _MI_COMPRESSED:
+                try:
+                    total += _inflated_size(handle, n_bytes, MAX_MAT_CONTENT_BYTES - total)
+                except zlib.error:
+                    return  # damaged: the loader says so
+            else:
+                total += n_bytes
+                handle.seek(n_bytes + (-n_bytes) % 8, 1)
+    raise InputTooLarge(f"{path}: its variables take more than {MAX_MAT_CONTENT_BYTES >> 20} MB once "
+                        f"decompressed, too large for an OTB result file; not read")
+
+
+def _inflated_size(handle, n_bytes: int, budget: int) -> int:
+    """Bytes that ``n_bytes`` of zlib data at ``handle`` inflate to, counted up to just over ``budget``."""
+    inflater = zlib.decompressobj()
+    size, left = 0, n_bytes
+    while left > 0 and size <= budget:
+        chunk = handle.read(min(left, 1 << 16))
+        if not chunk:
+            break
+        left -= len(chunk)
+        size += len(inflater.decompress(chunk, 1 << 20))
+        while inflater.unconsumed_tail and size <= budget:
+            size += len(inflater.decompress(inflater.unconsumed_tail, 1 << 20))
+    return size
 
 
 def _files_of(folder, tracker: str, sequence_name: str, name_map=None) -> list[Path]:
@@ -366,7 +479,7 @@ def _files_of(folder, tracker: str, sequence_name: str, name_map=None) -> list[P
         if len(same) > 1:
             raise DataError(f"{same[0]} and {same[1]} both hold {tracker}'s results on {sequence_name} "
                             f"(their names differ only by case or spelling); keep one")
-    return found
+    return [path for path in found if check_input_file(path, "OTB result file", MAX_MAT_BYTES)]
 
 
 def find_otb_result(folder, tracker: str, sequence, max_frames: int | None = None, name_map=None):
@@ -405,7 +518,7 @@ def find_otb_result(folder, tracker: str, sequence, max_frames: int | None = Non
     for path in _files_of(folder, tracker, sequence.name, name_map):
         try:
             result = read_otb_result(path)
-        except UnsupportedResultType:
+        except (UnsupportedResultType, InputTooLarge):
             raise  # say so: scoring the tracker as failing there would be wrong
         except DataError as exc:
             notes.append(f"{path}: not used, unreadable ({exc})")

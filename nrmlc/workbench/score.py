@@ -31,7 +31,8 @@ from pathlib import Path
 import numpy as np
 
 from nrmlc.errors import DataError, ParameterError
-from nrmlc.workbench.find import find_result, primary_seed, read_manifest, result_sources, seed_folders
+from nrmlc.workbench.find import find_result, primary_seed, result_sources, seed_folders
+from nrmlc.workbench.manifest import read_manifest
 from nrmlc.workbench.otb_results import find_otb_result, sequence_key
 from nrmlc.workbench.results_layout import SEEDS_FOLDER, select_sequences
 
@@ -242,14 +243,15 @@ def compare(result_folders, data_root, names=None, sequences=None, name_map=None
     """
     if not list(result_folders):
         raise ParameterError("--results: give at least one result folder")
-    sources = result_sources(result_folders, otb_trackers)
+    if max_frames is not None and (isinstance(max_frames, bool) or not isinstance(max_frames, (int, np.integer))
+                                   or max_frames < 2):
+        raise ParameterError(f"--max-frames must be an integer >= 2, got {max_frames!r}")
+    notes = []
+    sources = result_sources(result_folders, otb_trackers, _sequence_keys(data_root, sequences, name_map), notes)
     if not sources:
         raise DataError(f"{', '.join(map(str, result_folders))}: no tracker's results found")
     unique = _tracker_names(sources, names)
-    if max_frames is not None and max_frames < 2:
-        raise ParameterError(f"--max-frames must be >= 2, got {max_frames}")
-    notes = []
-    manifests = _read_manifests(unique, sources)
+    manifests = _read_manifests(unique, sources, notes)
     scope = {"sequences_from": None, "max_frames_from": None, "seeds": {}}
     from_manifests = False
     if follow_manifests and manifests:
@@ -288,13 +290,38 @@ def _tracker_names(sources: list, names) -> list[str]:
     return unique
 
 
-def _read_manifests(names: list, sources: list) -> dict:
-    """{tracker name: benchmark.json} of the ``nrmlc benchmark`` folders among ``sources``."""
+def _sequence_keys(data_root, sequences, name_map):
+    """A callable giving the keys of the sequences that may be scored, and of the file stems
+    ``name_map`` maps to them (listed once, and only when asked: see :func:`result_sources`)."""
+    import functools
+    import warnings
+
+    @functools.cache
+    def keys() -> frozenset:
+        if sequences is not None:
+            names = list(sequences)
+        else:
+            from nrmlc.data import list_sequences
+
+            with warnings.catch_warnings():  # the root's warnings come when it is read for scoring
+                warnings.simplefilter("ignore")
+                names = [s.name for s in list_sequences(data_root)]
+        found = {sequence_key(n) for n in names}
+        return frozenset(found | {sequence_key(stem) for stem, target in (name_map or {}).items()
+                                  if sequence_key(target) in found})
+
+    return keys
+
+
+def _read_manifests(names: list, sources: list, notes: list) -> dict:
+    """{tracker name: benchmark.json} of the ``nrmlc benchmark`` folders among ``sources``; the
+    runs whose file is not there are left out, with a note each."""
     manifests = {}
     for name, (_, folder, otb) in zip(names, sources):
-        manifest = read_manifest(folder) if otb is None else None
-        if manifest is not None:
-            manifests[name] = manifest
+        found = read_manifest(folder) if otb is None else None
+        if found is not None:
+            manifests[name] = found.data
+            notes += [f"{name}: {line}" for line in found.unwritten]
     return manifests
 
 
