@@ -294,6 +294,27 @@ def test_pool_failure_keeps_the_finished_runs(tmp_path, monkeypatch):
     assert [cache.has(s) for s in specs] == [True, False, True, True]
 
 
+def test_each_run_is_handed_over_as_soon_as_it_is_there(tmp_path, counted):
+    """on_result sees the runs read from the cache first, then each computed one; one that the
+    caller fails to keep ends the batch like a failed run, and the runs computed are still stored."""
+    specs = grid()
+    cache = RunCache(tmp_path)
+    cache.run(specs[:1], jobs=1, progress=False)
+    seen = []
+    cache.run(specs, jobs=1, progress=False, on_result=lambda job, result: seen.append((job.label, result.boxes[0, 0])))
+    assert seen == [("0/0", 0), ("0/1", 1), ("1/0", 0), ("1/1", 1)]
+
+    def refuse(job, result):
+        if job.label == "1/1":
+            raise OSError(28, "No space left on device")
+
+    other = RunCache(tmp_path / "other")
+    with futures.ThreadPoolExecutor(max_workers=2) as executor:
+        with pytest.raises(OSError, match="No space left"):
+            other.run(specs, executor=executor, progress=False, on_result=refuse)
+    assert other.has(specs[3])  # stored before it was handed over
+
+
 # ------------------------------------------------------ killed and resumed
 GRID_SCRIPT = """
 import sys, time
@@ -598,3 +619,33 @@ def test_every_job_class_follows_the_one_job_contract():
     sequence = SyntheticSequence(SyntheticSpec(name="job", seed=0, n_frames=6))
     job = ScaleProfile(sequence, TrackerParams(), 0, max_frames=4)
     assert isinstance(job, Job) and job.frames() == 4 and job.key("v") == jobs.description_key(job.description("v"))
+
+
+def test_entry_a_job_cannot_read_is_computed_again(tmp_path, monkeypatch):
+    """A job with no problem() of its own (a peer run, recorded internals): an entry its result()
+    cannot read (a missing array, text where a number is) is damage, not a traceback."""
+
+    class Timed(jobs.CachedJob):
+        uses_kernels = False
+        n_frames = None
+        label = "timed"
+
+        def __init__(self, sequence):
+            self.sequence = sequence
+
+        def description(self, version):
+            return {"timed": self.sequence.identity}
+
+        def execute(self):
+            return {"seconds": np.float64(2.0)}
+
+        def result(self, arrays):
+            return float(arrays["seconds"])
+
+    job = Timed(tiny_sequence(0))
+    cache = RunCache(tmp_path)
+    for stored, said in (({"other": np.zeros(2)}, "KeyError"), ({"seconds": np.array("two")}, "ValueError")):
+        cache.path(job).parent.mkdir(parents=True, exist_ok=True)
+        np.savez(cache.path(job), **stored)
+        with pytest.warns(UserWarning, match=rf"incomplete cache entry \(unreadable: {said}"):
+            assert cache.run([job], jobs=1, progress=False) == [2.0]

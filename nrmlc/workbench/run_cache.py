@@ -117,6 +117,12 @@ class RunCache:
             return None
         check = getattr(job, "problem", None)
         problem = check(arrays) if check is not None else None
+        if problem is None and job is not None:
+            # A job without a problem() of its own: what its result() cannot read is damage too.
+            try:
+                job.result(arrays)
+            except (KeyError, ValueError, TypeError, IndexError) as exc:
+                problem = f"unreadable: {type(exc).__name__}: {_one_line(exc)}"
         if problem is not None:
             warnings.warn(f"{path}: incomplete cache entry ({problem}); computing it again", stacklevel=3)
             return None
