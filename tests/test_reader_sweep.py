@@ -172,7 +172,7 @@ RESULT_ERRORS = {
     "link": (dangling_link, "broken symbolic link"),
     "fifo": (fifo, "not a regular file"),
     "folder": (lambda p: (p.unlink(), p.mkdir()), "not a regular file"),
-    "oversized": (lambda p: sparse(p, (1 << 30) + 1), "too large for a result file"),
+    "oversized": (lambda p: sparse(p, (1 << 30) + 1), "is too large (result file"),
 }
 
 
@@ -320,7 +320,7 @@ def test_non_finite_mat_values_are_failed_frames_and_no_speed(mat_folder, data_r
 MAT_ERRORS = {
     "link": (dangling_link, "broken symbolic link"),
     "fifo": (fifo, "not a regular file"),
-    "oversized": (lambda p: sparse(p, otb_results.MAX_MAT_BYTES + 1), "too large for a OTB result file"),
+    "oversized": (lambda p: sparse(p, otb_results.MAX_MAT_BYTES + 1), "is too large (OTB result file"),
 }
 
 
@@ -424,7 +424,7 @@ ATTRIBUTE_ERRORS = {
     "text": (lambda p: p.write_text("IV,SV"), "expected 11 flags"),
     "binary": (lambda p: p.write_bytes(b"\xff\xfe\x00\x81" * 10), "cannot read the attribute file"),
     "non-finite": (lambda p: p.write_text("nan,0,0,0,0,0,0,0,0,0,inf"), "expected 11 flags"),
-    "oversized": (lambda p: sparse(p, MAX_ATTRIBUTE_BYTES + 1), "too large for a attribute file"),
+    "oversized": (lambda p: sparse(p, MAX_ATTRIBUTE_BYTES + 1), "is too large (attribute file"),
     "link": (dangling_link, "broken symbolic link"),
     "fifo": (fifo, "not a regular file"),
 }
@@ -472,7 +472,7 @@ MANIFEST_ERRORS = {
     "truncated": (truncated, "not a benchmark manifest (JSONDecodeError"),
     "binary": (lambda p: p.write_bytes(b"\x80\xff" * 8), "not a benchmark manifest"),
     "deep": (lambda p: p.write_text("[" * 100_000 + "]" * 100_000), "not a benchmark manifest"),
-    "oversized": (lambda p: sparse(p, MAX_MANIFEST_BYTES + 1), "too large for a benchmark manifest"),
+    "oversized": (lambda p: sparse(p, MAX_MANIFEST_BYTES + 1), "is too large (benchmark manifest"),
     "link": (dangling_link, "broken symbolic link"),
     "fifo": (fifo, "not a regular file"),
     "folder": (lambda p: (p.unlink(), p.mkdir()), "not a regular file"),

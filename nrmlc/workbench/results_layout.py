@@ -75,7 +75,7 @@ def check_input_file(path, what: str, max_bytes: int) -> bool:
         return False
     size = path.stat().st_size
     if size > max_bytes:
-        raise InputTooLarge(f"{path}: {_size_text(size)} is too large for a {what} (at most "
+        raise InputTooLarge(f"{path}: {_size_text(size)} is too large ({what}: at most "
                             f"{_size_text(max_bytes)}); not read")
     return True
 
