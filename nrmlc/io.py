@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import contextlib
 import errno
+from io import BytesIO
 import json
 import math
 import os
@@ -488,6 +489,28 @@ def write_bytes(path: str | os.PathLike, data: bytes | bytearray | memoryview | 
     if isinstance(data, np.ndarray):
         data = np.ascontiguousarray(data).tobytes()
     return _atomic(path, lambda f: f.write(data), "wb")
+
+
+#: What matplotlib stamps into a file that differs between identical runs: the date (SVG, PDF,
+#: PostScript). SVG's element ids are random too, unless ``svg.hashsalt`` is fixed.
+_UNDATED = {"svg": {"Date": None}, "pdf": {"CreationDate": None}, "ps": {"CreationDate": None},
+            "eps": {"CreationDate": None}}
+
+
+def write_figure(figure, path: str | os.PathLike, dpi: int = 130) -> Path:
+    """Write a matplotlib ``figure`` to ``path`` atomically, in the format its suffix names, and
+    close it. Identical figures give identical bytes in every format (no date, fixed SVG ids)."""
+    import matplotlib
+    import matplotlib.pyplot as plt
+
+    kind = Path(path).suffix.lstrip(".").lower()
+    buffer = BytesIO()
+    try:
+        with matplotlib.rc_context({"svg.hashsalt": "nrmlc"}):
+            figure.savefig(buffer, format=kind, dpi=dpi, metadata=_UNDATED.get(kind))
+    finally:
+        plt.close(figure)
+    return write_bytes(path, buffer.getvalue())
 
 
 def write_text(path: str | os.PathLike, text: str) -> Path:

@@ -434,6 +434,33 @@ def test_jpeg_with_a_hole_is_refused_by_name_and_alone(tmp_path):
     assert not (tmp_path / "r.txt").exists()
 
 
+def test_jpeg_with_flipped_scan_bytes_is_refused(tmp_path):
+    # 40 flipped bytes mid-scan: most pixels decode wrong, and libjpeg's only line is often
+    # "N extraneous bytes before marker 0xd9" (else "premature end of data segment").
+    folder = _jpeg_folder(tmp_path)
+    frame = folder / "img" / "0003.jpg"
+    original = frame.read_bytes()
+    start = original.rfind(b"\xff\xda") + 20
+    messages = []
+    for seed in range(6):
+        data = bytearray(original)
+        for position in np.random.default_rng(seed).choice(np.arange(start, len(data) - 2), 40, replace=False):
+            data[position] ^= 0x5A
+        frame.write_bytes(bytes(data))
+        with pytest.raises(DataError, match=r"0003\.jpg: cannot read image \(damaged JPEG data: ") as refused:
+            open_sequence(folder).raw_frame(2)
+        messages.append(str(refused.value))
+    assert any("extraneous bytes before marker 0xd9" in message for message in messages), messages
+
+
+def test_jpeg_with_bytes_after_its_end_marker_reads_whole(tmp_path):
+    folder = _jpeg_folder(tmp_path)
+    frame = folder / "img" / "0002.jpg"
+    expected = cv2.imread(str(frame), cv2.IMREAD_UNCHANGED)
+    frame.write_bytes(frame.read_bytes() + b"camera trailer" * 4)  # after FFD9: libjpeg never reads it
+    np.testing.assert_array_equal(open_sequence(folder).raw_frame(1), expected)
+
+
 def test_damaged_frame_check_costs_little(tmp_path):
     from nrmlc.data.image import native_messages
 

@@ -439,3 +439,22 @@ def test_an_interrupt_a_finaliser_swallowed_still_ends_the_run(seq, tmp_path, mo
     monkeypatch.undo()
     assert main(["track", str(seq), "--out", str(out), *FAST]) == 0  # the next run starts clear
     assert out.read_text() != "earlier result\n"
+
+
+@pytest.mark.parametrize("suffix", ["svg", "pdf", "png"])
+def test_identical_figures_give_identical_files(suffix, tmp_path):
+    """No date and no random SVG ids in a plot: two identical figures are the same bytes."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    written = []
+    for attempt in range(2):
+        figure, axis = plt.subplots(figsize=(3, 2))
+        axis.plot([0, 1, 2], [0, 1, 0.5], label="tracker")
+        axis.legend()
+        written.append(io.write_figure(figure, tmp_path / f"plot{attempt}.{suffix}").read_bytes())
+        time.sleep(1.1)  # a date in the file would now differ by a second
+    assert written[0] == written[1]
+    assert not plt.get_fignums()  # each figure is closed

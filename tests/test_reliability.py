@@ -213,10 +213,14 @@ def test_pixel_formats_through_sequence_folders(textured_frames, tmp_path):
     (np.zeros((8, 8), np.complex64), "unsupported dtype complex64"),
     (np.full((8, 8), np.nan), "NaN or infinite"),
     (np.full((8, 8, 3), np.inf, np.float32), "NaN or infinite"),
-], ids=["list", "1d", "1xN", "5-channels", "bool", "complex", "nan", "inf-bgr"])
+    (np.full((8, 8), 1e300), r"frame values reach 1e\+300, beyond float32's range"),
+    (np.full((8, 8, 3), -1e39), r"frame values reach 1e\+39, beyond float32's range"),
+], ids=["list", "1d", "1xN", "5-channels", "bool", "complex", "nan", "inf-bgr", "1e300", "beyond-float32-bgr"])
 def test_bad_frames(image, message):
-    with pytest.raises(ParameterError, match=message):
-        as_gray_frame(image)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # refused by our line, not after numpy's overflow warning
+        with pytest.raises(ParameterError, match=message):
+            as_gray_frame(image)
 
 
 @pytest.mark.parametrize("box, message", [
@@ -259,23 +263,46 @@ def test_initial_box_inside_is_kept_exactly_without_warning():
     (dict(n_positive=3, n_negative=2, max_positive=3), r"dictionary_sizes: k = 8 is larger than the template count 5"),
     (dict(dictionary_sizes=(5, 17)), r"dictionary_sizes: each k must be in 1\.\.16"),
     (dict(dictionary_sizes=()), r"dictionary_sizes: needs at least one"),
-    (dict(lam=-0.5), r"parameter lam: must be >= 0"),
-    (dict(beta=-1e-9), r"parameter beta: must be >= 0"),
+    (dict(lam=-0.5), r"parameter lam: must be in \[0, 1e\+06\]"),
+    (dict(beta=-1e-9), r"parameter beta: must be in \[0, 1e\+06\]"),
     (dict(n_particles=0), r"parameter n_particles: must be (>= 1|in 1\.\.)"),
     (dict(n_particles=2.5), r"parameter n_particles: must be an integer"),
     (dict(n_particles=True), r"parameter n_particles: must be an integer"),
     (dict(coding="lasso"), r"parameter coding: unknown mode 'lasso'"),
     (dict(lam=float("nan")), r"parameter lam: must be a finite number"),
-    (dict(alpha=0.0), r"parameter alpha: must be > 0"),
+    (dict(alpha=0.0), r"parameter alpha: must be in \(0, 1e\+06\]"),
     (dict(motion_sigmas=(4, 4, 0.01, 0, -1, 0)), r"parameter motion_sigmas"),
     (dict(patch_size=2), r"parameter patch_size: must be >= 4"),
+    (dict(occlusion_max_negative=-5), r"parameter occlusion_max_negative: must be in 0\.\.10000, got -5"),
+    (dict(update_error_threshold=-5), r"parameter update_error_threshold: must be in \[0, 4\], got -5"),
+    (dict(update_error_threshold=1e308), r"parameter update_error_threshold: must be in \[0, 4\]"),
+    (dict(positive_radius=-1), r"parameter positive_radius: must be in \[0, 1000\], got -1"),
+    (dict(positive_radius=20), r"parameter negative_radius: must be larger than positive_radius \(20\), got 16$"),
+    (dict(n_iterations=10**9), r"parameter n_iterations: must be in 0\.\.100,"),
+    (dict(max_positive=0), r"parameter max_positive: must be in 1\.\.10000"),
+    (dict(coefficient_tolerance=2.0), r"parameter coefficient_tolerance: must be in \[0, 1\]"),
 ], ids=["k-over-templates", "k-over-16", "no-k", "lam", "beta", "particles", "particles-float", "particles-bool",
-        "coding", "lam-nan", "alpha", "sigma", "patch"])
+        "coding", "lam-nan", "alpha", "sigma", "patch", "occlusion-negative", "error-threshold-negative",
+        "error-threshold-huge", "positive-radius-negative", "radii-order", "iterations", "max-positive",
+        "tolerance"])
 def test_bad_parameters(overrides, message):
     with pytest.raises(ParameterError, match=message):
         TrackerParams(**overrides)
     with pytest.raises(ParameterError, match=message):
         NRMLCTracker(**overrides)
+
+
+def test_every_number_has_a_range_that_means_something():
+    """Each numeric parameter is bounded on both sides, so no value the tracker cannot use passes;
+    patch_size's upper bound is the memory check's (``TrackerParams.estimated_bytes``)."""
+    import dataclasses
+
+    from nrmlc.tracker.parameter_fields import field_kinds
+
+    kinds = field_kinds(TrackerParams)
+    open_ended = [f.name for f in dataclasses.fields(TrackerParams) if kinds[f.name] in (int, float)
+                  and (f.metadata.get("low") is None or f.metadata.get("high") is None)]
+    assert open_ended == ["patch_size"]
 
 
 def test_bad_tracker_use():

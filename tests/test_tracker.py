@@ -290,14 +290,28 @@ def test_carried_template_gram_is_the_gram_of_the_templates(sequence, max_positi
 
 
 def test_occlusion_blocks_positive_updates(sequence):
-    kwargs = dict(n_particles=50, update_interval=1, update_error_threshold=4.0)
-    blocked = NRMLCTracker(seed=0, occlusion_max_negative=-1, **kwargs)  # every frame counts as occluded
-    free = NRMLCTracker(seed=0, occlusion_max_negative=-1, occlusion_detection=False, **kwargs)
+    """Over real frames: with detection on, the positives grow on exactly the frames not judged
+    occluded (some frames must be, for the test to mean anything); with it off, on every frame.
+    Three positives leave negatives in every dictionary of 5 or more atoms, so codes use them."""
+    kwargs = dict(n_particles=50, n_positive=3, update_interval=1, update_error_threshold=4.0,
+                  occlusion_max_negative=0, coefficient_tolerance=0.0)
+    blocked = NRMLCTracker(seed=0, **kwargs)
+    free = NRMLCTracker(seed=0, occlusion_detection=False, **kwargs)
+    occluded = []
     for tracker in (blocked, free):
         tracker.init(sequence.frame(0), sequence.init_box)
-        for index in range(1, 4):
+        for index in range(1, 6):
             tracker.update(sequence.frame(index))
-    assert len(blocked.positive_templates) == 50 and len(free.positive_templates) == 53
+            if tracker is blocked:
+                occluded.append(tracker.last.occluded)
+    assert any(occluded), "no frame judged occluded: the test checks nothing"
+    assert len(blocked.positive_templates) == 3 + occluded.count(False)
+    assert len(free.positive_templates) == 3 + 5
+
+
+def test_occlusion_threshold_below_zero_is_refused():
+    with pytest.raises(ParameterError, match="parameter occlusion_max_negative: must be in 0..10000, got -1"):
+        TrackerParams(occlusion_max_negative=-1)
 
 
 def _coding_of_one(tracker: NRMLCTracker, patch: np.ndarray, negative_codes: list) -> Coding:

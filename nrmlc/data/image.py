@@ -130,6 +130,14 @@ def as_gray_frame(image: np.ndarray) -> np.ndarray:
         raise ParameterError(f"frame must be a gray or BGR(A) image of at least 2x2 pixels, got shape {image.shape}")
     if not np.issubdtype(image.dtype, np.number) or np.issubdtype(image.dtype, np.complexfloating):
         raise ParameterError(f"frame has unsupported dtype {image.dtype}")
+    if image.dtype.kind == "f" and image.dtype.itemsize > 4:
+        # Checked before float32 would turn a finite 1e300 into inf (with numpy's overflow warning).
+        if not np.all(np.isfinite(image)):
+            raise ParameterError("frame contains NaN or infinite values")
+        largest = float(np.abs(image).max())
+        if largest > float(np.finfo(np.float32).max):
+            raise ParameterError(f"frame values reach {largest:.3g}, beyond float32's range (3.4e38); "
+                                 f"scale the image")
     frame = to_gray_float32(image)
     if not np.all(np.isfinite(frame)):
         raise ParameterError("frame contains NaN or infinite values")

@@ -73,7 +73,7 @@ class GenerativeParams(CheckedParams):
     generative_candidates: int = bounded(20, 1, 100_000)
     generative_neighbours: int = bounded(5, 1, N_ATOMS)
     generative_lam: float = bounded(1.0, 0, 1000, low_open=True)
-    generative_interval: int = bounded(5, 1)
+    generative_interval: int = bounded(5, 1, 1_000_000)  # beyond any video: never
     generative_step: int = bounded(4, 1, LOCAL_SIZE)
 
 

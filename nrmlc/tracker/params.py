@@ -36,6 +36,12 @@ MAX_RADIUS = 1000.0
 #: Per-frame motion std beyond these is not a motion model: 1000 px (or template px), an e-fold of
 #: scale or aspect, pi rad.
 MAX_MOTION_SIGMA = (1000.0, 1000.0, 1.0, math.pi, 1.0, math.pi)
+#: Ridges beyond this leave the coding a constant (the Gram's entries are at most k): nothing to tune.
+MAX_RIDGE = 1e6
+#: Algorithm 1 settles in a few rounds (paper: T = 3); beyond this is only time.
+MAX_ITERATIONS = 100
+#: alpha (eps_pos - eps_neg), eps in [0, 4], beyond 4e6 is a hard arg-max already.
+MAX_ALPHA = 1e6
 #: Where the parameters measured and removed are listed, with their evidence.
 REMOVED_PARAMETERS = "docs/research/README.md#parameters-measured-and-removed"
 
@@ -117,30 +123,30 @@ class PaperParams(CheckedParams):
     propagation: Literal["condensation", "best"] = "condensation"
     translation_noise: Literal["relative", "pixels"] = "relative"
     # -- templates (Sec. 3)
-    n_positive: int = bounded(50, 1)
-    n_negative: int = bounded(100, 0)
+    n_positive: int = bounded(50, 1, MAX_TEMPLATES)
+    n_negative: int = bounded(100, 0, MAX_TEMPLATES)
     template_sampling: Literal["scm", "annulus"] = "scm"
-    positive_radius: float = 2.0
-    negative_radius: float = 16.0
+    positive_radius: float = bounded(2.0, 0, MAX_RADIUS)
+    negative_radius: float = bounded(16.0, 0, MAX_RADIUS, low_open=True)
     positive_sigma: float = bounded(1.0, 0, MAX_RADIUS)
     negative_push: float = bounded(0.25, 0, 2)
     patch_size: int = bounded(PATCH_SIZE, 4)
     # -- coding (Algorithm 1)
     dictionary_sizes: tuple[int, ...] = (5, 8, 10)
     coding: Literal["regularized", "constrained", "plain"] = "regularized"
-    lam: float = bounded(1.0, 0)
-    beta: float = bounded(0.1, 0)
-    n_iterations: int = bounded(3, 0)
+    lam: float = bounded(1.0, 0, MAX_RIDGE)
+    beta: float = bounded(0.1, 0, MAX_RIDGE)
+    n_iterations: int = bounded(3, 0, MAX_ITERATIONS)
     # -- confidence (Algorithm 2, step 2.4)
-    alpha: float = bounded(25.0, 0, low_open=True)
+    alpha: float = bounded(25.0, 0, MAX_ALPHA, low_open=True)
     confidence: Literal["corrected", "literal"] = "corrected"
     # -- template updates and occlusion (Algorithm 2, step 2.5)
-    update_interval: int = bounded(5, 1)
-    max_positive: int = 100
-    update_error_threshold: float = 0.1
+    update_interval: int = bounded(5, 1, 1_000_000)  # beyond any video: never
+    max_positive: int = bounded(100, 1, MAX_TEMPLATES)
+    update_error_threshold: float = bounded(0.1, 0, 4)
     occlusion_detection: bool = True
-    occlusion_max_negative: int = 2
-    coefficient_tolerance: float = bounded(1e-6, 0)
+    occlusion_max_negative: int = bounded(2, 0, MAX_TEMPLATES)
+    coefficient_tolerance: float = bounded(1e-6, 0, 1)
 
     def check_group(self) -> None:
         if len(self.motion_sigmas) != 6 or any(not math.isfinite(v) or v < 0 for v in self.motion_sigmas):
@@ -152,11 +158,9 @@ class PaperParams(CheckedParams):
             fail("n_negative" if self.n_negative > self.max_positive else "max_positive",
                  f"max_positive + n_negative must be at most {MAX_TEMPLATES} (the template Gram is "
                  f"their square), got {self.max_positive} + {self.n_negative}")
-        if not 0 <= self.positive_radius < self.negative_radius:
-            fail("negative_radius", f"need 0 <= positive_radius < negative_radius, got "
-                                    f"{self.positive_radius} and {self.negative_radius}")
-        if self.negative_radius > MAX_RADIUS:
-            fail("negative_radius", f"must be at most {MAX_RADIUS:g} template pixels, got {self.negative_radius}")
+        if self.positive_radius >= self.negative_radius:
+            fail("negative_radius", f"must be larger than positive_radius ({self.positive_radius:g}), "
+                                    f"got {self.negative_radius:g}")
         if not self.dictionary_sizes:
             fail("dictionary_sizes", "needs at least one dictionary size")
         n_templates = self.n_positive + self.n_negative

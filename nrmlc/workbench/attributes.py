@@ -23,7 +23,6 @@ its count.
 """
 from __future__ import annotations
 
-import io as text_io
 import re
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -249,7 +248,4 @@ def plot_attributes(comparison, scores: list[AttributeScores], path) -> Path:
     figure.suptitle(f"OPE per attribute ({n} sequence{'s' if n != 1 else ''}; in brackets: those with the "
                     f"attribute)", fontsize=10)
     figure.tight_layout()
-    buffer = text_io.BytesIO()
-    figure.savefig(buffer, format=Path(path).suffix.lstrip(".").lower(), dpi=130)
-    plt.close(figure)
-    return io.write_bytes(path, buffer.getvalue())
+    return io.write_figure(figure, path)

@@ -114,10 +114,7 @@ def plot_comparison(comparison: Comparison, path, title: str = "") -> Path:
     if title:
         figure.suptitle(title)
     figure.tight_layout()
-    buffer = text_io.BytesIO()
-    figure.savefig(buffer, format=Path(path).suffix.lstrip(".").lower(), dpi=130)
-    plt.close(figure)
-    return io.write_bytes(path, buffer.getvalue())
+    return io.write_figure(figure, path)
 
 
 CSV_COLUMNS = ("tracker", "seed", "sequence", "file", "frames", "missing_frames", *SCORE_NAMES, "fps",

@@ -8,7 +8,6 @@ folders record none: such a tracker is left out of the plot, with a note.
 """
 from __future__ import annotations
 
-import io as text_io
 import math
 from pathlib import Path
 
@@ -86,8 +85,5 @@ def plot_speed(comparison, path) -> tuple[Path, list[str]]:
     if untimed:
         figure.text(0.01, 0.01, f"no fps recorded: {', '.join(untimed)}", fontsize=7, color="0.4")
     figure.tight_layout()
-    buffer = text_io.BytesIO()
-    figure.savefig(buffer, format=Path(path).suffix.lstrip(".").lower(), dpi=130)
-    plt.close(figure)
     notes = [f"--speed-plot: left out {', '.join(untimed)} (no fps recorded)"] if untimed else []
-    return io.write_bytes(path, buffer.getvalue()), notes
+    return io.write_figure(figure, path), notes
