@@ -436,8 +436,11 @@ def _probe(folder: Path, name: str, where: str) -> None:
         os.unlink(probe)  # even if an interrupt lands here
 
 
-def check_folder(path: str | os.PathLike, option: str) -> Path:
+def check_folder(path: str | os.PathLike, option: str, where: str | None = None) -> Path:
     """Refuse an output folder before any work is done (the folder counterpart of :func:`check_output`).
+
+    ``where`` names the folder in messages (default ``"<option> <path>"``; a default folder the
+    user did not give says so instead).
 
     Raises
     ------
@@ -447,7 +450,7 @@ def check_folder(path: str | os.PathLike, option: str) -> Path:
         if it cannot be created or written to. The message names ``path`` as given.
     """
     text = os.fspath(path)
-    where = f"{option} {text}"
+    where = where or f"{option} {text}"
     if not text.strip():
         raise ParameterError(f"{option}: empty path")
     too_long = long_name(text)

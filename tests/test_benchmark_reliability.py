@@ -420,3 +420,91 @@ def test_malformed_cache_entry_is_computed_again_with_one_warning(tmp_path, comp
     code, _, err = run_main(["benchmark", data, "--out", tmp_path / "R2", "--cache", tmp_path / "C", *SMALL_ARGS],
                             capsys)
     assert code == 0 and "Traceback" not in err, err
+
+
+# =================================================== round 4, left over: the cases found alongside
+def test_a_sequence_folder_named_in_multibyte_characters_is_written_and_replaced(tmp_path):
+    # The staging folders' prefix is cut by bytes: cut by characters, 64 emoji made it 270 bytes.
+    [sequence] = synthetic_suite(n_frames=3, size=(24, 32), n_sequences=1)
+    folder = tmp_path / EMOJI_252
+    write_otb_sequence(sequence, folder)
+    write_otb_sequence(sequence, folder)  # replaces the earlier one, through a second staging folder
+    assert [p.name for p in tmp_path.iterdir()] == [EMOJI_252]
+    read = open_sequence(folder)
+    assert len(read) == 3 and np.array_equal(read.groundtruth, sequence.groundtruth)
+
+
+@pytest.mark.parametrize("held", ["Car4.TXT", "Car4.Txt", "Biker_IVT.MAT", "SUMMARY.CSV", "summary.json", "seeds"])
+def test_a_folder_of_results_in_any_case_without_a_manifest_is_refused(tmp_path, capsys, computed, held):
+    data = make_data(tmp_path / "S", count=1)
+    out = tmp_path / "R"
+    out.mkdir()
+    (out / held).mkdir() if held == "seeds" else (out / held).write_text("1,2,3,4\n")
+    code, _, err = run_main(["benchmark", data, "--out", out, "--cache", tmp_path / "C", *SMALL_ARGS], capsys)
+    assert code == 2 and err.strip() == (f"error: {out}: holds {held} but no {MANIFEST_NAME} (not made by nrmlc "
+                                         f"benchmark); choose another --out, nothing there is overwritten"), err
+    assert computed == [] and sorted(p.name for p in out.iterdir() if p.name != LOCK_NAME) == [held]
+    assert (out / held).is_dir() if held == "seeds" else (out / held).read_text() == "1,2,3,4\n"
+
+
+def test_a_folder_of_other_files_is_written_into(tmp_path, computed):
+    data = make_data(tmp_path / "S", count=1)
+    out = tmp_path / "R"
+    out.mkdir()
+    (out / "notes.md").write_text("mine\n")
+    (out / ".draft.txt").write_text("a hidden file is no one's results\n")
+    bench(data, out, tmp_path / "C")
+    assert (out / "synth-01.txt").is_file() and (out / "notes.md").read_text() == "mine\n"
+
+
+@pytest.mark.parametrize("kind, said", [("folder", "a folder"), ("fifo", "a FIFO"), ("link", "a symbolic link"),
+                                        ("dangling", "a symbolic link")])
+def test_a_lock_that_is_no_file_is_one_line(tmp_path, capsys, computed, kind, said):
+    data = make_data(tmp_path / "S", count=1)
+    out = tmp_path / "R"
+    out.mkdir()
+    lock = out / LOCK_NAME
+    elsewhere = tmp_path / "precious.txt"
+    elsewhere.write_text("not to be truncated\n")
+    if kind == "folder":
+        lock.mkdir()
+    elif kind == "fifo":
+        os.mkfifo(lock)
+    elif kind == "link":
+        lock.symlink_to(elsewhere)
+    else:
+        lock.symlink_to(tmp_path / "gone")
+    code, _, err = run_main(["benchmark", data, "--out", out, "--cache", tmp_path / "C", *SMALL_ARGS], capsys)
+    assert code == 2 and err.strip() == (f"error: {lock}: {said}, not the lock file nrmlc benchmark keeps there; "
+                                         f"remove it (it is made again) or choose another --out"), err
+    assert computed == [] and elsewhere.read_text() == "not to be truncated\n"
+    assert not (tmp_path / "gone").exists()
+
+
+def test_the_default_cache_is_named_as_the_default(tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / ".cache").write_text("a file where the cache's parent would be")
+    default = RunCache()
+    assert default.default and default.folder == Path(".cache") / "runs"
+    with pytest.raises(ParameterError) as refused:
+        default.check_folder()
+    assert str(refused.value) == ("the run cache .cache/runs (default; choose one with --cache): a parent of this "
+                                  "path is a file, not a folder")
+    given = RunCache(Path(".cache") / "runs")
+    assert not given.default and given.label == "--cache .cache/runs"
+    with pytest.raises(ParameterError, match=r"^--cache \.cache/runs: a parent of this path is a file"):
+        given.check_folder()
+
+
+def test_a_default_cache_that_cannot_be_written_is_warned_of_as_the_default(tmp_path, monkeypatch, computed):
+    data = make_data(tmp_path / "S", count=1)
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / ".cache").write_text("a file where the cache's parent would be")
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        summary = run_benchmark(data, tmp_path / "R", SMALL, jobs=1, progress=False, log=lambda line: None)
+    said = [str(w.message) for w in caught if "cannot store runs" in str(w.message)]
+    assert len(said) == 1 and said[0].startswith("the run cache .cache/runs (default; choose one with --cache): "
+                                                 "cannot store runs in it ("), said
+    assert "--cache .cache" not in said[0]
+    assert len(summary["runs"]) == 1 and (tmp_path / "R" / "synth-01.txt").is_file()

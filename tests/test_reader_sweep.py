@@ -504,6 +504,12 @@ MANIFEST_ERRORS = {
                        "runs key '../../etc' is not a sequence name"),
     "run keys of one name": (_edit(lambda m: m["runs"].update({TARGET.upper(): m["runs"][TARGET]})),
                              "runs has both"),
+    "identity a number": (_edit(lambda m: _run(m).update(sequence_identity=5)),
+                          ".sequence_identity must be the sequence's content key (text) or absent, got 5"),
+    "identity null": (_edit(lambda m: _run(m).update(sequence_identity=None)),
+                      ".sequence_identity must be the sequence's content key (text) or absent, got None"),
+    "identity a list": (_edit(lambda m: _run(m).update(sequence_identity=["frames:10"])),
+                        ".sequence_identity must be"),
 }
 
 
@@ -518,7 +524,7 @@ def test_manifest_evaluate_cannot_follow_is_refused_by_name(case, bench_folder, 
 
 
 @pytest.mark.parametrize("case", ["fps infinite", "fps negative", "max_frames float", "run key a path", "truncated",
-                                  "link"])
+                                  "link", "identity a number"])
 def test_benchmark_refuses_the_manifests_evaluate_refuses(case, bench_folder, data_root, tmp_path, capsys):
     make, what = MANIFEST_ERRORS[case]
     path = bench_folder / MANIFEST_NAME
@@ -560,6 +566,71 @@ def test_a_run_without_its_result_file_gets_no_summary_row(bench_folder, data_ro
     assert any(f"seeds/3/{TARGET}.txt" in str(w.message) and "left out" in str(w.message) for w in caught)
     rows = benchmark.summarize(manifest)["runs"]
     assert [(r["sequence"], r["seed"]) for r in rows if r["sequence"] == TARGET] == [(TARGET, 0)]
+
+
+# ------------------------------------------------------------------ other seeds' folders
+def _seed_run(bench_folder, data_root, names, seed: str) -> Path:
+    """Seed ``seed``'s results in ``seeds/<seed>/`` and its entries in the manifest."""
+    folder = bench_folder / "seeds" / seed
+    folder.mkdir(parents=True)
+    for name in names:
+        (folder / f"{name}.txt").write_text(box_text(shifted(data_root, name, 3.0)))
+    _edit(lambda m: [m["runs"][name].update({seed: {"frames": N_FRAMES, "fps": 10.0}}) for name in names])(
+        bench_folder / MANIFEST_NAME)
+    return folder
+
+
+SEED_FOLDER_ERRORS = {
+    "link": (dangling_link, "broken symbolic link"),
+    "fifo": (fifo, "named as a seed's results folder, but not a folder"),
+    "file": (lambda p: p.write_text("x\n"), "named as a seed's results folder, but not a folder"),
+}
+
+
+@pytest.mark.parametrize("case", sorted(SEED_FOLDER_ERRORS))
+def test_seed_folder_that_is_no_folder_is_refused_by_name(case, bench_folder, data_root, names, capsys):
+    _seed_run(bench_folder, data_root, names, "1")
+    make, what = SEED_FOLDER_ERRORS[case]
+    path = bench_folder / "seeds" / "2"
+    make(path)
+    code, _, err = evaluate(bench_folder, data_root, capsys, "--all-seeds")
+    assert_error(code, err, path, what)
+
+
+def test_seeds_that_is_a_dangling_link_is_refused_by_name(bench_folder, data_root, capsys):
+    dangling_link(bench_folder / "seeds")
+    code, _, err = evaluate(bench_folder, data_root, capsys, "--all-seeds")
+    assert_error(code, err, bench_folder / "seeds", "broken symbolic link")
+
+
+def test_entries_of_seeds_that_name_no_seed_are_not_seeds(bench_folder, data_root, names, capsys):
+    _seed_run(bench_folder, data_root, names, "1")
+    (bench_folder / "seeds" / "README").write_text("x\n")
+    (bench_folder / "seeds" / "\u00b3").mkdir()  # a superscript three: a digit to str.isdigit, not a seed
+    code, result, err = evaluate(bench_folder, data_root, capsys, "--all-seeds")
+    assert code == 0, err
+    assert result["trackers"][0]["seeds"] == 2  # seeds 0 and 1 (the superscript was a traceback before)
+
+
+# ------------------------------------------------------------------ sparse-pack ground truth
+def test_a_hidden_copy_beside_a_sparse_pack_mat_is_not_a_second_ground_truth(tmp_path):
+    from test_data import write_sparsepack
+
+    from nrmlc.data import open_sequence
+    from nrmlc.data.synthetic import synthetic_suite, write_otb_sequence
+
+    [sequence] = synthetic_suite(n_frames=4, size=(48, 64), n_sequences=1)
+    folder = write_otb_sequence(sequence, tmp_path / "Pack")
+    (folder / "groundtruth_rect.txt").unlink()
+    corners = np.array([[10.0, 10, 30, 30, 10], [5.0, 25, 25, 5, 5]])
+    write_sparsepack(folder, 4, {1: corners}, size=(64, 48))
+    expected = open_sequence(folder).groundtruth
+    (folder / "._pack_gt.mat").write_bytes(b"\x00\x05\x16\x07 Mac OS X metadata")  # AppleDouble
+    assert open_sequence(folder).groundtruth_path.name == "pack_gt.mat"
+    (folder / "pack_gt.mat").rename(folder / "PACK_GT.MAT")
+    found = open_sequence(folder)
+    assert found.groundtruth_path.name == "PACK_GT.MAT"
+    np.testing.assert_array_equal(found.groundtruth, expected)
 
 
 # ------------------------------------------------------------------ outputs: all or none

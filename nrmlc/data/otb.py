@@ -48,8 +48,8 @@ from nrmlc.data.boxes import read_box_file
 from nrmlc.data.sequence import Sequence
 from nrmlc.data.sparsepack import (
     DATAINFO_NAME,
-    GROUNDTRUTH_MAT_PATTERN,
     find_groundtruth_mat,
+    groundtruth_mats,
     is_sparsepack,
     read_datainfo,
     read_sparsepack_groundtruth,
@@ -270,7 +270,7 @@ def open_sequence(
         name = f"{base_name}-{first_target}"
 
     if groundtruth_path is None:
-        for pack_file in (folder / DATAINFO_NAME, *folder.glob(GROUNDTRUTH_MAT_PATTERN)):
+        for pack_file in (folder / DATAINFO_NAME, *groundtruth_mats(folder)):
             _present(pack_file)  # a pack's files that exist must be readable files
     from_sparsepack = groundtruth_path is None and is_sparsepack(folder)
     if groundtruth_path is not None:

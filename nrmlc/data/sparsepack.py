@@ -73,17 +73,26 @@ def find_groundtruth_mat(folder: str | os.PathLike) -> Path | None:
     DataError
         If several ``*_gt.mat`` files make the choice ambiguous.
     """
-    matches = sorted(Path(folder).glob(GROUNDTRUTH_MAT_PATTERN))
+    matches = groundtruth_mats(folder)
     if len(matches) > 1:
         names = ", ".join(m.name for m in matches)
         raise DataError(f"{folder}: several ground-truth mat files ({names}); keep one")
     return matches[0] if matches else None
 
 
+def groundtruth_mats(folder: str | os.PathLike) -> list[Path]:
+    """The ``*_gt.mat`` files of ``folder``, by name: the extension in any case (``_GT.MAT``), and
+    never a hidden name (``._faceocc2_gt.mat``, the metadata file a Mac leaves beside a copy, is
+    no second ground truth)."""
+    suffix = GROUNDTRUTH_MAT_PATTERN.lstrip("*")
+    return sorted(p for p in Path(folder).iterdir()
+                  if not p.name.startswith(".") and p.name.lower().endswith(suffix) and len(p.name) > len(suffix))
+
+
 def is_sparsepack(folder: str | os.PathLike) -> bool:
     """True when ``folder`` has a ``datainfo.txt`` and a ``*_gt.mat`` file."""
     folder = Path(folder)
-    return (folder / DATAINFO_NAME).is_file() and any(folder.glob(GROUNDTRUTH_MAT_PATTERN))
+    return (folder / DATAINFO_NAME).is_file() and bool(groundtruth_mats(folder))
 
 
 def corners_to_box(corners: np.ndarray) -> np.ndarray:

@@ -557,13 +557,13 @@ def write_otb_sequence(sequence: Sequence, folder: str | os.PathLike) -> Path:
     import tempfile
 
     from nrmlc.errors import OutputError
-    from nrmlc.io import _signals_held
+    from nrmlc.io import _signals_held, cut_to_bytes
 
     folder = Path(folder)
     check_otb_destination(folder, len(sequence))
     try:
         folder.parent.mkdir(parents=True, exist_ok=True)
-        staging = Path(tempfile.mkdtemp(prefix=f".tmp-{folder.name[:64]}-", dir=folder.parent))
+        staging = Path(tempfile.mkdtemp(prefix=f".tmp-{cut_to_bytes(folder.name, 64)}-", dir=folder.parent))
     except OSError as exc:
         raise OutputError(f"{folder}: cannot write ({exc.strerror or exc})") from None
     old = None
@@ -580,7 +580,7 @@ def write_otb_sequence(sequence: Sequence, folder: str | os.PathLike) -> Path:
         write_boxes(staging / GROUNDTRUTH_NAME, np.nan_to_num(sequence.groundtruth, nan=0.0))
         with _signals_held():
             if os.path.lexists(folder):
-                old = Path(tempfile.mkdtemp(prefix=f".tmp-{folder.name[:64]}-old-", dir=folder.parent))
+                old = Path(tempfile.mkdtemp(prefix=f".tmp-{cut_to_bytes(folder.name, 64)}-old-", dir=folder.parent))
                 os.replace(folder, old / "sequence")
             try:
                 os.replace(staging, folder)

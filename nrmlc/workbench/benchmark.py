@@ -57,14 +57,11 @@ from pathlib import Path
 import numpy as np
 
 from nrmlc import io
-from nrmlc.errors import DataError, ParameterError
-from nrmlc.workbench.manifest import read_manifest
+from nrmlc.errors import DataError, OutputError, ParameterError
+from nrmlc.workbench.manifest import IDENTITY_FIELD, read_manifest
 from nrmlc.workbench.results_layout import (LOCK_NAME, MANIFEST_NAME, SEEDS_FOLDER, SUMMARY_CSV, SUMMARY_JSON,
-                                   parse_names, result_file, select_sequences)
+                                   has_suffix, parse_names, result_file, select_sequences)
 
-#: The entry of a run in the manifest that holds its sequence's content key
-#: (:attr:`nrmlc.data.Sequence.identity`, as the run cache keys on it).
-IDENTITY_FIELD = "sequence_identity"
 #: Per-run scores, in the order of the summary columns.
 SCORE_FIELDS = ("mean_overlap", "mean_center_error", "success_auc", "precision_20")
 _RANGE = re.compile(r"^(\d+)-(\d+)$")
@@ -128,7 +125,7 @@ def _locked(out: Path, log=None):
         yield
         return
     out.mkdir(parents=True, exist_ok=True)
-    fd = os.open(out / LOCK_NAME, os.O_RDWR | os.O_CREAT, 0o666)
+    fd = _open_lock(out / LOCK_NAME)
     try:
         try:
             fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
@@ -141,6 +138,37 @@ def _locked(out: Path, log=None):
         yield
     finally:
         os.close(fd)  # releases the lock
+
+
+def _open_lock(path: Path) -> int:
+    """The lock file, opened for reading and writing (created if absent); refuse, in one line naming
+    it, anything else by its name: a link (the holder's line would be written wherever it points),
+    a folder, a FIFO or a device, or a file that cannot be opened."""
+    import stat
+
+    def refuse(what: str):
+        raise OutputError(f"{path}: {what}, not the lock file nrmlc benchmark keeps there; remove it "
+                          f"(it is made again) or choose another --out")
+
+    try:
+        mode = os.lstat(path).st_mode
+    except FileNotFoundError:
+        mode = None
+    except OSError as exc:
+        refuse(f"cannot be read ({exc.strerror or exc})")
+    if mode is not None and stat.S_ISLNK(mode):
+        refuse("a symbolic link")
+    if mode is not None and not stat.S_ISREG(mode):
+        refuse("a folder" if stat.S_ISDIR(mode) else "a FIFO" if stat.S_ISFIFO(mode) else "not a regular file")
+    try:
+        # No link followed, and no wait on a FIFO put there between the check and the open.
+        fd = os.open(path, os.O_RDWR | os.O_CREAT | os.O_NOFOLLOW | os.O_NONBLOCK, 0o666)
+    except OSError as exc:
+        refuse(f"cannot be opened ({exc.strerror or exc})")
+    if not stat.S_ISREG(os.fstat(fd).st_mode):
+        os.close(fd)
+        refuse("not a regular file")
+    return fd
 
 
 def _write_holder(fd: int) -> None:
@@ -187,10 +215,27 @@ def _read_manifest(out: Path, settings: dict) -> dict:
         return manifest
     if out.exists() and not out.is_dir():
         raise DataError(f"{out}: exists and is not a folder")
-    if out.is_dir() and any(out.glob("*.txt")):
-        raise DataError(f"{out}: holds .txt files but no {MANIFEST_NAME} (not made by nrmlc benchmark); "
+    held = _results_held(out) if out.is_dir() else None
+    if held is not None:
+        raise DataError(f"{out}: holds {held} but no {MANIFEST_NAME} (not made by nrmlc benchmark); "
                         f"choose another --out, nothing there is overwritten")
     return {"settings": settings, "primary_seed": None, "runs": {}}
+
+
+#: Names in a folder, lower case, that ``nrmlc benchmark`` writes or ``nrmlc evaluate`` reads as results.
+_RESULT_NAMES = (SUMMARY_CSV, SUMMARY_JSON, SEEDS_FOLDER)
+
+
+def _results_held(out: Path) -> str | None:
+    """What in ``out`` a benchmark would overwrite, or would make read otherwise (``<Seq>.txt``
+    results, OTB ``.mat`` results, a summary, ``seeds/``; extensions and names in any case, as
+    evaluate reads them; hidden names are no one's results), e.g. ``"Car4.TXT"``; None if nothing."""
+    for entry in sorted(out.iterdir()):
+        name = entry.name
+        if (has_suffix(name, ".txt") or has_suffix(name, ".mat")
+                or (not name.startswith(".") and name.lower() in _RESULT_NAMES)):
+            return name
+    return None
 
 
 def _scores(boxes: np.ndarray, sequence) -> dict | None:

@@ -45,8 +45,8 @@ from nrmlc.data.boxes import MAX_BOX_FILE_BYTES
 from nrmlc.errors import DataError, ParameterError
 from nrmlc.workbench.manifest import read_manifest as load_manifest
 from nrmlc.workbench.otb_results import has_otb_results, otb_sequences, select_trackers, sequence_key
-from nrmlc.workbench.results_layout import (MANIFEST_NAME, SEEDS_FOLDER, InputTooLarge, check_input_file, has_suffix,
-                                            reading)
+from nrmlc.workbench.results_layout import (MANIFEST_NAME, SEEDS_FOLDER, InputTooLarge, check_input_file,
+                                            check_input_folder, has_suffix, reading)
 
 #: A result file's extension (any case: ``Car4.TXT`` is Car4's).
 RESULT_SUFFIX = ".txt"
@@ -268,9 +268,19 @@ def primary_seed(folder) -> str:
 
 
 def seed_folders(folder) -> list[Path]:
-    """The other seeds' folders of a ``nrmlc benchmark`` folder, ``<folder>/seeds/<seed>``, by seed."""
+    """The other seeds' folders of a ``nrmlc benchmark`` folder, ``<folder>/seeds/<seed>``, by seed.
+
+    Entries whose name is not a seed (``README``, a hidden file) are not seeds' folders.
+
+    Raises
+    ------
+    DataError
+        For ``seeds`` or a ``seeds/<seed>`` that is there but no folder (a broken or looping
+        link, a file, a FIFO): a seed's results are never taken for absent.
+    """
     root = Path(folder) / SEEDS_FOLDER
-    if not root.is_dir():
+    if not check_input_folder(root, "folder of other seeds' results"):
         return []
-    found = [p for p in root.iterdir() if p.is_dir() and p.name.isdigit()]
+    found = [p for p in root.iterdir() if p.name.isascii() and p.name.isdigit()
+             and check_input_folder(p, "seed's results folder")]
     return sorted(found, key=lambda p: int(p.name))

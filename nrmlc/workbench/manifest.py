@@ -6,7 +6,8 @@ A manifest is strict JSON (no ``NaN``, no ``Infinity``) of this shape::
     {"settings": {"params": {...}, "max_frames": null or an integer >= 2, "data": "/abs/root"},
      "primary_seed": null or an integer >= 0,
      "runs": {"<Seq>": {"<seed>": {"frames": 1..10^9, "fps": null or 0 < fps <= 10^9,
-                                   "scores": null or {"success_auc": ..., ...}, "code_version": "..."}}}}
+                                   "scores": null or {"success_auc": ..., ...}, "code_version": "...",
+                                   "sequence_identity": "<content key>" (text; absent in older folders)}}}}
 
 Counts are integers, never booleans or floats (``2.7`` is refused, not read as 2). A ``<Seq>`` key
 names a folder entry (no ``/``, not ``..``), unique without regard to case; a ``<seed>`` key is a
@@ -31,6 +32,9 @@ from nrmlc.errors import DataError
 from nrmlc.workbench.results_layout import (MANIFEST_NAME, check_input_file, is_plain_name, reading,
                                             result_file)
 
+#: The entry of a run that holds its sequence's content key (:attr:`nrmlc.data.Sequence.identity`),
+#: which ``nrmlc benchmark`` compares with the sequence's on a rerun.
+IDENTITY_FIELD = "sequence_identity"
 #: Largest ``benchmark.json`` read (about 400,000 runs).
 MAX_MANIFEST_BYTES = 64 << 20
 #: Largest speed taken as measured: one frame per nanosecond.
@@ -149,6 +153,9 @@ def _check_run(where: str, seed, entry, fail) -> None:
     fps = entry.get("fps")
     if fps is not None and not (_finite(fps, 0, MAX_FPS) and fps > 0):
         fail(f"{where}.fps must be a number in (0, {MAX_FPS:g}] or null, got {fps!r}")
+    if IDENTITY_FIELD in entry and not isinstance(entry[IDENTITY_FIELD], str):
+        fail(f"{where}.{IDENTITY_FIELD} must be the sequence's content key (text) or absent, "
+             f"got {entry[IDENTITY_FIELD]!r}")
     scores = entry.get("scores")
     if scores is None:
         return

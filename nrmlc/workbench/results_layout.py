@@ -80,6 +80,45 @@ def check_input_file(path, what: str, max_bytes: int) -> bool:
     return True
 
 
+def check_input_folder(path, what: str) -> bool:
+    """Whether a folder ``evaluate`` reads is there; refuse, naming it, something there by its name
+    that is no folder (a broken or looping link, a file, a FIFO): never taken for an absent folder.
+
+    Parameters
+    ----------
+    path : path
+    what : str
+        What the folder is, for messages (``"seed's results folder"``).
+
+    Returns
+    -------
+    bool
+        False when nothing is there (not even a link).
+
+    Raises
+    ------
+    DataError
+    """
+    import errno
+    import stat
+
+    path = Path(path)
+    if not os.path.lexists(path):
+        return False
+    try:
+        mode = os.stat(path).st_mode
+    except OSError as exc:
+        if exc.errno == errno.ELOOP:
+            raise DataError(f"{path}: symbolic link loop (a {what})") from None
+        if exc.errno == errno.ENOENT and path.is_symlink():
+            raise DataError(f"{path}: broken symbolic link (its target {os.readlink(path)!r} does not exist; "
+                            f"a {what})") from None
+        raise DataError(f"{path}: cannot read ({exc.strerror or exc}; a {what})") from None
+    if not stat.S_ISDIR(mode):
+        raise DataError(f"{path}: named as a {what}, but not a folder")
+    return True
+
+
 def _size_text(n_bytes: int) -> str:
     return f"{n_bytes / 2**20:.1f} MB" if n_bytes >= 2**20 else f"{n_bytes / 2**10:.1f} kB"
 

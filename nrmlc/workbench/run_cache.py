@@ -47,14 +47,25 @@ def _one_line(error: BaseException) -> str:
 class RunCache:
     """Results of jobs on disk, ``<folder>/<job.folder>/<job key>.npz``."""
 
-    def __init__(self, folder: str | os.PathLike = DEFAULT_CACHE) -> None:
-        self.folder = Path(folder)
+    def __init__(self, folder: str | os.PathLike | None = None) -> None:
+        #: Whether the folder is :data:`DEFAULT_CACHE`, chosen by no one (messages say so).
+        self.default = folder is None
+        self.folder = Path(DEFAULT_CACHE if folder is None else folder)
         self.version = version.code_version()
+
+    @property
+    def label(self) -> str:
+        """The cache as messages name it: ``--cache F``, or, for the default the user did not
+        choose, ``the run cache F (default; choose one with --cache)``."""
+        if self.default:
+            return f"the run cache {self.folder} (default; choose one with --cache)"
+        return f"--cache {self.folder}"
 
     def check_folder(self, option: str = "--cache") -> None:
         """Refuse, before any work, a cache folder that cannot be created or written to
-        (:func:`nrmlc.io.check_folder`; the message names it as ``option``)."""
-        io.check_folder(self.folder, option)
+        (:func:`nrmlc.io.check_folder`; the message names it as ``option``, or as the default
+        cache when no folder was given)."""
+        io.check_folder(self.folder, option, self.label if self.default else None)
 
     def path(self, job) -> Path:
         return self.folder / job.folder / f"{job.key(self.version)}.npz"
@@ -230,8 +241,10 @@ class RunCache:
                 if not keep_unstored:
                     raise
                 if not unstored:
-                    warnings.warn(f"{self.folder}: cannot store runs in the run cache ({_one_line(exc)}); the results "
-                                  f"are kept but not cached, so a later run computes them again", stacklevel=4)
+                    where = f"{self.label}: cannot store runs in it" if self.default else \
+                        f"{self.folder}: cannot store runs in the run cache"
+                    warnings.warn(f"{where} ({_one_line(exc)}); the results are kept but not cached, so a later "
+                                  f"run computes them again", stacklevel=4)
                 unstored.append(job)
             done.append((job, arrays))
             bar.update(job.frames(), getattr(job, "label", ""))
