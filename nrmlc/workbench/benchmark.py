@@ -36,9 +36,9 @@ the merged manifest. An invocation that has to wait for the lock says so, and
 names the process holding it.
 
 Nothing the user has is overwritten: an existing folder with ``.txt`` files
-but no ``benchmark.json`` is refused, and so is a folder made with other
-tracker parameters, another frame cap or another data root (choose another
-``--out``).
+but no ``benchmark.json`` is refused, and so is a folder made with another
+tracker (``--tracker``, :mod:`nrmlc.workbench.trackers`), other tracker
+parameters, another frame cap or another data root (choose another ``--out``).
 """
 from __future__ import annotations
 
@@ -200,8 +200,15 @@ def _read_manifest(out: Path, settings: dict) -> dict:
         manifest = found.data
         stored = manifest["settings"]
         details = []
+        # NRMLC's folders have no "tracker" (they have "params"); an imported tracker's has its name.
+        trackers = stored.get("tracker"), settings.get("tracker")
+        if trackers[0] != trackers[1]:
+            old, new = (repr(t) if t is not None else "NRMLC" for t in trackers)
+            details.append(f"tracker {old} there, {new} now")
         for key in sorted(set(stored) | set(settings)):
             old, new = stored.get(key), settings.get(key)
+            if key == "tracker" or (key == "params" and trackers[0] != trackers[1]):
+                continue
             if key == "params":
                 # Fields added to TrackerParams since (or dropped) are not a difference.
                 old, new = old or {}, new or {}
@@ -252,7 +259,7 @@ def _scores(boxes: np.ndarray, sequence) -> dict | None:
 
 def run_benchmark(data_root, out, params=None, seeds=(0,), sequences: list[str] | None = None,
                   max_frames: int | None = None, jobs: int | None = None, executor=None, cache=None,
-                  progress: bool = True, log=None) -> dict:
+                  progress: bool = True, log=None, tracker=None) -> dict:
     """Track every selected (sequence, seed) that is not finished yet and write the results.
 
     Parameters
@@ -262,6 +269,7 @@ def run_benchmark(data_root, out, params=None, seeds=(0,), sequences: list[str] 
     out : path
         Output folder (see the module docstring for its layout).
     params : TrackerParams, optional
+        Shorthand for ``tracker=NRMLCEntry(params)``.
     seeds : sequence of int
     sequences : list of str, optional
         Sequence names (default: all of the root).
@@ -277,6 +285,10 @@ def run_benchmark(data_root, out, params=None, seeds=(0,), sequences: list[str] 
         Progress bar on stderr.
     log : callable(str), optional
         Where status lines go (default: stderr).
+    tracker : entry, optional
+        The tracker to run (:mod:`nrmlc.workbench.trackers`: ``NRMLCEntry(params)``, or
+        ``ImportedTracker("package.module:factory")`` for any ``init`` / ``update`` tracker);
+        default NRMLC with ``params``. Not both.
 
     Returns
     -------
@@ -284,17 +296,19 @@ def run_benchmark(data_root, out, params=None, seeds=(0,), sequences: list[str] 
         What ``summary.json`` holds.
     """
     from nrmlc.data import read_box_file
-    from nrmlc.workbench.jobs import RunSpec, frames_tracked
+    from nrmlc.workbench.jobs import _count, frames_tracked
     from nrmlc.workbench.run_cache import RunCache
+    from nrmlc.workbench.trackers import NRMLCEntry, TrackerEntry
     from nrmlc.workbench.version import code_version
-    from nrmlc.tracker.params import TrackerParams
 
     log = log or (lambda line: print(line, file=sys.stderr, flush=True))
-    from nrmlc.workbench.jobs import _count
-
-    params = TrackerParams() if params is None else params
-    if not isinstance(params, TrackerParams):
-        raise ParameterError(f"run_benchmark: params must be a TrackerParams, got {type(params).__name__}")
+    if tracker is None:
+        tracker = NRMLCEntry() if params is None else NRMLCEntry(params)
+    elif params is not None:
+        raise ParameterError("run_benchmark: give params (NRMLC's) or tracker, not both")
+    if not isinstance(tracker, TrackerEntry):
+        raise ParameterError(f"run_benchmark: tracker must have name, settings() and job() "
+                             f"(nrmlc.workbench.trackers), got {type(tracker).__name__}")
     if max_frames is not None:
         max_frames = _count("--max-frames", max_frames, 2)
     seeds = tuple(_count("seed", s, 0) for s in seeds)
@@ -322,7 +336,7 @@ def run_benchmark(data_root, out, params=None, seeds=(0,), sequences: list[str] 
     cache = cache if cache is not None else RunCache()
     _check_beside_inputs(cache.folder, chosen, "--cache")
     _check_result_names(out, chosen)
-    settings = json.loads(json.dumps({"params": params.as_dict(), "max_frames": max_frames,
+    settings = json.loads(json.dumps({**tracker.settings(), "max_frames": max_frames,
                                       "data": str(data_root.resolve())}, default=str))
     with _locked(out, log):
         # Settled under the lock, and written at once: a second invocation started alongside
@@ -364,8 +378,7 @@ def run_benchmark(data_root, out, params=None, seeds=(0,), sequences: list[str] 
             warnings.warn(f"{path}: not a finished result ({problem}); running it again")
         return problem is None
 
-    todo = [RunSpec(s, params, seed, max_frames, label=s.name) for s in chosen for seed in seeds
-            if not finished(s, seed)]
+    todo = [tracker.job(s, seed, max_frames) for s in chosen for seed in seeds if not finished(s, seed)]
     if unrecorded:
         warnings.warn(f"{out / MANIFEST_NAME}: {len(unrecorded)} runs (e.g. {unrecorded[0]}) do not record the data "
                       f"they were made from (an earlier nrmlc wrote them), so they may be stale; running them again "
@@ -473,8 +486,8 @@ def add_benchmark_command(commands) -> None:
     """Register ``benchmark`` on the subparsers of ``python -m nrmlc``."""
     bench = commands.add_parser(
         "benchmark", help="track every sequence of a data root into OTB result files (resumable)",
-        description="Track every sequence of DATA with NRMLC and write OTB result files "
-                    "OUT/<Seq>.txt (the first seed; other seeds in OUT/seeds/<seed>/), "
+        description="Track every sequence of DATA with NRMLC (or your own tracker: --tracker) and write "
+                    "OTB result files OUT/<Seq>.txt (the first seed; other seeds in OUT/seeds/<seed>/), "
                     "OUT/summary.csv and OUT/summary.json (overlap, CLE, AUC, precision@20, fps "
                     "where there is ground truth). A rerun skips every finished (sequence, seed).")
     bench.add_argument("data", metavar="DATA", help="data root: a folder of sequence folders")
@@ -487,6 +500,12 @@ def add_benchmark_command(commands) -> None:
                        help="named parameter set (TrackerParams.preset; default: 'default'), before --param")
     bench.add_argument("--param", action="append", default=[], metavar="NAME=VALUE",
                        help="any tracker parameter, e.g. --param n_particles=300 (repeatable)")
+    from nrmlc.workbench.trackers import CONTRACT
+
+    bench.add_argument("--tracker", metavar="MODULE:FACTORY",
+                       help="benchmark your own tracker instead of NRMLC: package.module:factory, a callable "
+                            f"(called with seed=SEED if it has a seed parameter) returning {CONTRACT}; "
+                            "the module must be importable (PYTHONPATH); not with --preset or --param")
     bench.add_argument("--max-frames", type=int, metavar="N", help="track only the first N frames of each sequence")
     bench.add_argument("--jobs", type=int, metavar="N", help="worker processes (default: all cores)")
     bench.add_argument("--dask", metavar="ADDRESS", help="run on a Dask cluster (needs the 'distributed' package)")
@@ -497,9 +516,17 @@ def add_benchmark_command(commands) -> None:
 def _cmd_benchmark(args: argparse.Namespace) -> int:
     from nrmlc.workbench.run_cache import RunCache
     from nrmlc.tracker.params import TrackerParams, parse_param_assignment
+    from nrmlc.workbench.trackers import ImportedTracker, NRMLCEntry
 
-    base = TrackerParams.preset(args.preset) if args.preset else TrackerParams()
-    params = base.replace(**dict(parse_param_assignment(text) for text in args.param))
+    if args.tracker is not None:
+        nrmlc_only = [option for option, given in (("--preset", args.preset), ("--param", args.param)) if given]
+        if nrmlc_only:
+            raise ParameterError(f"--tracker {args.tracker}: {' and '.join(nrmlc_only)} set NRMLC's parameters; "
+                                 f"give them without --tracker, or give your tracker's settings in its factory")
+        tracker = ImportedTracker(args.tracker)
+    else:
+        base = TrackerParams.preset(args.preset) if args.preset else TrackerParams()
+        tracker = NRMLCEntry(base.replace(**dict(parse_param_assignment(text) for text in args.param)))
     if args.jobs is not None and args.jobs < 1:
         raise ParameterError(f"--jobs must be >= 1, got {args.jobs}")
     executor = None
@@ -509,8 +536,8 @@ def _cmd_benchmark(args: argparse.Namespace) -> int:
         except ImportError:
             raise ParameterError("--dask needs the Dask 'distributed' package (pip install -e .[cluster])") from None
         executor = Client(args.dask).get_executor()
-    summary = run_benchmark(args.data, args.out, params, parse_seeds(args.seeds), parse_names(args.sequences),
-                            args.max_frames, args.jobs, executor,
-                            RunCache(args.cache) if args.cache else None)
+    summary = run_benchmark(args.data, args.out, seeds=parse_seeds(args.seeds), sequences=parse_names(args.sequences),
+                            max_frames=args.max_frames, jobs=args.jobs, executor=executor,
+                            cache=RunCache(args.cache) if args.cache else None, tracker=tracker)
     print(format_summary(summary))
     return 0

@@ -9,6 +9,9 @@ A manifest is strict JSON (no ``NaN``, no ``Infinity``) of this shape::
                                    "scores": null or {"success_auc": ..., ...}, "code_version": "...",
                                    "sequence_identity": "<content key>" (text; absent in older folders)}}}}
 
+A folder of an imported tracker (``nrmlc benchmark --tracker``) has ``"tracker":
+"package.module:factory"`` (text) in its settings instead of ``params``.
+
 Counts are integers, never booleans or floats (``2.7`` is refused, not read as 2). A ``<Seq>`` key
 names a folder entry (no ``/``, not ``..``), unique without regard to case; a ``<seed>`` key is a
 seed written as :func:`str` writes it (``"3"``, not ``"03"``). Scores are finite: AUC, precision
@@ -134,6 +137,9 @@ def _check_settings(settings, fail) -> None:
         fail("no 'settings' object")
     if not isinstance(settings.get("params", {}), dict):
         fail("'settings.params' is not an object")
+    tracker = settings.get("tracker")  # an imported tracker's package.module:factory (NRMLC's folders have none)
+    if tracker is not None and not (isinstance(tracker, str) and tracker.strip() and "\0" not in tracker):
+        fail(f"'settings.tracker' must be the tracker's package.module:factory or absent, got {tracker!r}")
     cap = settings.get("max_frames")
     if cap is not None and not _count(cap, 2, MAX_FRAMES):
         fail(f"'settings.max_frames' must be an integer >= 2 or null, got {cap!r}")
