@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import argparse
 import functools
+import inspect
 import os
 import re
 import signal
@@ -29,6 +30,12 @@ def _cmd_evaluate(args: argparse.Namespace) -> int:
 
 
 def _cmd_list(args: argparse.Namespace) -> int:
+    """list the sequences found under a data root
+
+    List every sequence found under ROOT, one line each: its name, frame count, frame size and how
+    many frames have a ground-truth box. ROOT may be in the OTB layout (a folder per sequence with
+    img/ and groundtruth_rect.txt) or the sparse-tracker pack layout.
+    """
     from nrmlc.data import list_sequences
 
     for sequence in list_sequences(args.root):
@@ -39,9 +46,14 @@ def _cmd_list(args: argparse.Namespace) -> int:
 
 
 def _cmd_synth(args: argparse.Namespace) -> int:
-    """Write the suite one sequence at a time (each all or nothing), after every check: a folder
-    that is not an earlier synthetic sequence, too little memory or disk refuse the whole command
-    before anything is written."""
+    """write the synthetic sequences to OTB folders
+
+    Write the synthetic test suite (the sequences 'make figures' uses without --data) as OTB folders
+    OUT/synth-01, OUT/synth-02, ...: frames as PNG files in img/ and the exact boxes in
+    groundtruth_rect.txt. The same seed gives the same frames. Every check (the folders, memory,
+    free disk) runs before anything is written, and each sequence is written whole or not at all;
+    in OUT, an earlier synthetic sequence of the same length is replaced, anything else is refused.
+    """
     import cv2
 
     from nrmlc.data import SyntheticSequence, write_otb_sequence
@@ -81,7 +93,13 @@ def _cmd_synth(args: argparse.Namespace) -> int:
 
 
 def _cmd_params(args: argparse.Namespace) -> int:
-    """Print the tracker's parameters as a table grouped by the part of the algorithm each governs."""
+    """list the tracker's parameters: group, default, range, meaning
+
+    List every tracker parameter that 'nrmlc track' and 'nrmlc benchmark' accept as --param
+    NAME=VALUE, grouped by the part of the algorithm it governs: its value in the preset, the values
+    it may take, and a one-line meaning. With --preset paper, the paper preset's values, those that
+    differ from the default's marked *.
+    """
     from nrmlc.errors import NrmlcError
     from nrmlc.tracker import params as tracker_params
 
@@ -150,6 +168,16 @@ def format_parameter_table(rows: list[dict], reference: list[dict] | None = None
     if changed:
         lines += ["", f"* differs from the 'default' preset ({len(changed)} of {len(rows)} parameters)"]
     return lines
+
+
+def add_command(commands, name: str, run) -> argparse.ArgumentParser:
+    """Add subcommand ``name``, which calls ``run(args)``. Its one-line help (``nrmlc --help``) is
+    the first line of ``run``'s docstring, its description (``nrmlc NAME --help``) the rest: each
+    command's text is written once, beside its code."""
+    summary, _, description = inspect.getdoc(run).partition("\n\n")
+    parser = commands.add_parser(name, help=summary, description=" ".join(description.split()))
+    parser.set_defaults(run=run)
+    return parser
 
 
 def _add_track(commands) -> None:
@@ -240,42 +268,23 @@ def build_parser() -> argparse.ArgumentParser:
     add_evaluate_arguments(evaluate)
     evaluate.set_defaults(run=_cmd_evaluate)
 
-    listing = commands.add_parser(
-        "list", help="list the sequences found under a data root",
-        description="List every sequence found under ROOT, one line each: its name, frame count, frame size "
-                    "and how many frames have a ground-truth box. ROOT may be in the OTB layout (a folder per "
-                    "sequence with img/ and groundtruth_rect.txt) or the sparse-tracker pack layout.")
+    listing = add_command(commands, "list", _cmd_list)
     listing.add_argument("root", help="folder of sequences (OTB or sparse-tracker pack layout)")
-    listing.set_defaults(run=_cmd_list)
 
-    synth = commands.add_parser(
-        "synth", help="write the synthetic sequences to OTB folders",
-        description="Write the synthetic test suite (the sequences 'make figures' uses without --data) as OTB "
-                    "folders OUT/synth-01, OUT/synth-02, ...: frames as PNG files in img/ and the exact boxes "
-                    "in groundtruth_rect.txt. The same seed gives the same frames. Every check (the folders, "
-                    "memory, free disk) runs before anything is written, and each sequence is written whole "
-                    "or not at all; in OUT, an earlier synthetic sequence of the same length is replaced, anything else "
-                    "is refused.")
+    synth = add_command(commands, "synth", _cmd_synth)
     synth.add_argument("--out", required=True, help="output folder")
     synth.add_argument("--frames", type=int, default=120, help="frames per sequence")
     synth.add_argument("--count", type=int, default=3, help="number of sequences")
     synth.add_argument("--seed", type=int, default=0, help="generator seed")
-    synth.set_defaults(run=_cmd_synth)
 
     from nrmlc.tracker.params import PRESETS
 
-    params = commands.add_parser(
-        "params", help="list the tracker's parameters: group, default, range, meaning",
-        description="List every tracker parameter that 'nrmlc track' and 'nrmlc benchmark' accept as --param "
-                    "NAME=VALUE, grouped by the part of the algorithm it governs: its value in the preset, the "
-                    "values it may take, and a one-line meaning. With --preset paper, the paper preset's "
-                    "values, those that differ from the default's marked *.")
+    params = add_command(commands, "params", _cmd_params)
     params.add_argument("--preset", default="default", choices=tuple(PRESETS),
                         help="show this parameter set's values")
-    params.set_defaults(run=_cmd_params)
 
-    for add_command in _EXTRA_COMMANDS:
-        add_command(commands)
+    for add_more in _EXTRA_COMMANDS:
+        add_more(commands)
     for command in commands.choices.values():
         # Also for the parsers other modules build: every --help names the defaults.
         command.formatter_class = HelpFormatter

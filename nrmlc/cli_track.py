@@ -20,14 +20,9 @@ _SEQUENCE_FILE = re.compile(r"^(groundtruth_rect(\.\d+)?\.txt|datainfo\.txt|.*_g
 
 
 def add_track_command(commands) -> None:
-    track = commands.add_parser(
-        "track", help="track the target of a sequence folder or a video file with NRMLC",
-        description="Track one target through a sequence folder or a video file with NRMLC and write its box "
-                    "in every frame to --out, one x,y,w,h line per frame (OTB convention, 1-based pixels). "
-                    "The first box is the ground truth's first, or --init-box. Where the sequence has ground "
-                    "truth, the closing line gives the mean overlap and centre error. Every output is checked "
-                    "before tracking starts and written only once the run has succeeded; the same seed gives "
-                    "the same boxes for any --threads.")
+    from nrmlc.cli import add_command
+
+    track = add_command(commands, "track", run_track)
     track.add_argument("sequence", metavar="SEQ_DIR|VIDEO",
                        help="sequence folder (OTB or sparse-tracker pack layout, or a folder of frames), or a "
                             "video file OpenCV reads (.mp4, .avi, ...; needs --init-box)")
@@ -53,7 +48,6 @@ def add_track_command(commands) -> None:
     track.add_argument("--video", metavar="OUT.mp4", help="also write the frames with the tracked box drawn "
                        "(.mp4, .m4v, .mov, .avi or .mkv)")
     track.add_argument("--diagnostics", metavar="DIAG.npz", help="also save per-frame diagnostics")
-    track.set_defaults(run=run_track)
 
 
 def check_outputs(args: argparse.Namespace, sequence) -> None:
@@ -85,6 +79,15 @@ def check_outputs(args: argparse.Namespace, sequence) -> None:
 
 
 def run_track(args: argparse.Namespace) -> int:
+    """track the target of a sequence folder or a video file with NRMLC
+
+    Track one target through a sequence folder or a video file with NRMLC and write its box in
+    every frame to --out, one x,y,w,h line per frame (OTB convention, 1-based pixels). The first box
+    is the ground truth's first, or --init-box. Where the sequence has ground truth, the closing
+    line gives the mean overlap and centre error. Every output is checked before tracking starts
+    and written only once the run has succeeded; the same seed gives the same boxes for any
+    --threads.
+    """
     from nrmlc import io
     from nrmlc.config import set_threads
     from nrmlc.data import open_sequence

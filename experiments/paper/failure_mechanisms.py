@@ -453,21 +453,24 @@ def findings(data: dict) -> list[str]:
     return lines
 
 
-#: The mechanisms named when their measure reaches its :data:`NAMED_WHEN` threshold: (key, text of a row).
-_THRESHOLD_MECHANISMS = (
-    ("fast_share", lambda r: f"motion beyond reach ({fmt(r['fast_share'], 2)} of the frame steps beyond "
-                             f"{FAST_SIGMAS:g} sigma, the largest {fmt(r['fast_max'], 0)} sigma)"),
-    ("contaminated", lambda r: f"template contamination ({fmt(r['contaminated'], 2)} of the positive updates "
-                               f"before the loss of lock made with the box at IoU < {CONTAMINATED_IOU:g})"),
-    ("confident_off", lambda r: f"confident off the target (eps_pos* below the update threshold on "
-                                f"{fmt(r['confident_off'], 2)} of the frames at IoU < {LOST_IOU:g})"),
-    ("gate_shut", lambda r: f"the update gate shut on the target (eps_pos* at or above the threshold on "
-                            f"{fmt(r['gate_shut'], 2)} of the frames held at IoU >= {ON_TARGET_IOU:g} before the loss)"),
-    ("captured", lambda r: f"captured at the loss (eps_pos* below the update threshold on {fmt(r['captured'], 2)} "
-                           f"of the {LOST_RUN} frames from the loss on: the positives describe where the box went)"),
-    ("faded", lambda r: f"faded before the loss (eps_pos* at or above the update threshold on {fmt(r['faded'], 2)} "
-                        f"of the {LOST_RUN} frames before it: the target had stopped matching the positives)"),
-)
+#: The mechanisms named when their measure reaches its :data:`NAMED_WHEN` threshold: key -> text of a
+#: row, where ``{share}`` is the measure and the other fields are :data:`_TEXT_FIELDS` and the row's.
+_THRESHOLD_MECHANISMS = {
+    "fast_share": "motion beyond reach ({share} of the frame steps beyond {fast_sigmas:g} sigma, the largest "
+                  "{fast_max} sigma)",
+    "contaminated": "template contamination ({share} of the positive updates before the loss of lock made with "
+                    "the box at IoU < {contaminated_iou:g})",
+    "confident_off": "confident off the target (eps_pos* below the update threshold on {share} of the frames at "
+                     "IoU < {lost_iou:g})",
+    "gate_shut": "the update gate shut on the target (eps_pos* at or above the threshold on {share} of the frames "
+                 "held at IoU >= {on_target_iou:g} before the loss)",
+    "captured": "captured at the loss (eps_pos* below the update threshold on {share} of the {lost_run} frames "
+                "from the loss on: the positives describe where the box went)",
+    "faded": "faded before the loss (eps_pos* at or above the update threshold on {share} of the {lost_run} "
+             "frames before it: the target had stopped matching the positives)",
+}
+_TEXT_FIELDS = dict(fast_sigmas=FAST_SIGMAS, contaminated_iou=CONTAMINATED_IOU, lost_iou=LOST_IOU,
+                    on_target_iou=ON_TARGET_IOU, lost_run=LOST_RUN)
 #: How many measures can name a mechanism (starvation, occlusion, scale, the threshold ones, the fit).
 N_NAMING_MEASURES = 4 + len(_THRESHOLD_MECHANISMS)
 
@@ -483,9 +486,9 @@ def mechanisms(row: dict) -> list[str]:
     end = row["scale_last"]
     if math.isfinite(end) and not SCALE_OFF <= end <= 1 / SCALE_OFF:
         named.append(f"scale drift (the box {fmt(end, 2)} times the true size at the end)")
-    for key, text in _THRESHOLD_MECHANISMS:
+    for key, text in _THRESHOLD_MECHANISMS.items():
         if math.isfinite(row[key]) and row[key] >= NAMED_WHEN[key]:
-            named.append(text(row))
+            named.append(text.format(share=fmt(row[key], 2), fast_max=fmt(row.get("fast_max"), 0), **_TEXT_FIELDS))
     if not row["lost_runs"] and math.isfinite(row["fit"]) and row["fit"] < NAMED_WHEN["fit"]:
         named.append(f"the box's fit (mean IoU {fmt(row['fit'], 2)} on the frames on the target before any loss; "
                      f"{fmt(row['fit_size'], 2)} with each box centred on the truth, i.e. its size alone)")
