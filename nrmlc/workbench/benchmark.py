@@ -334,7 +334,7 @@ def run_benchmark(data_root, out, params=None, seeds=(0,), sequences: list[str] 
     chosen = usable
     _check_beside_inputs(out, chosen)
     cache = cache if cache is not None else RunCache()
-    _check_beside_inputs(cache.folder, chosen, "--cache")
+    _check_beside_inputs(cache.folder, chosen, cache.label if cache.default else "--cache")
     _check_result_names(out, chosen)
     settings = json.loads(json.dumps({**tracker.settings(), "max_frames": max_frames,
                                       "data": str(data_root.resolve())}, default=str))

@@ -156,7 +156,7 @@ def _exit_with(parent: int, every: float = 2.0) -> None:
             pass
 
 
-def _worker_init(parent: int | None = None) -> None:
+def _worker_init(parent: int | None = None, warm: bool = True) -> None:
     import threading
 
     from nrmlc.config import set_threads
@@ -164,14 +164,16 @@ def _worker_init(parent: int | None = None) -> None:
     if parent is not None:
         threading.Thread(target=_exit_with, args=(parent,), name="exit-with-parent", daemon=True).start()
     set_threads(1)
-    warm_up()
+    if warm:
+        warm_up()
 
 
-def process_pool(workers: int) -> futures.ProcessPoolExecutor:
-    """A pool of ``workers`` single-threaded, warmed-up processes started from a fresh
-    interpreter (forkserver, else spawn): safe after this process used OpenMP. They end
-    themselves within seconds if this process is killed."""
+def process_pool(workers: int, warm: bool = True) -> futures.ProcessPoolExecutor:
+    """A pool of ``workers`` single-threaded processes started from a fresh interpreter
+    (forkserver, else spawn): safe after this process used OpenMP. With ``warm``, each loads our
+    kernels before its first job (jobs that do not run them, e.g. a user's tracker, need not
+    wait). They end themselves within seconds if this process is killed."""
     methods = multiprocessing.get_all_start_methods()
     context = multiprocessing.get_context("forkserver" if "forkserver" in methods else "spawn")
     return futures.ProcessPoolExecutor(max_workers=workers, mp_context=context, initializer=_worker_init,
-                                       initargs=(os.getpid(),))
+                                       initargs=(os.getpid(), warm))

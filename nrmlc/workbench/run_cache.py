@@ -258,7 +258,8 @@ class RunCache:
                     finished(job, pool.execute_job(job, 1))
                 return done
             if own:
-                executor = pool.process_pool(min(workers, len(missing)))
+                executor = pool.process_pool(min(workers, len(missing)),
+                                             warm=any(getattr(job, "uses_kernels", False) for job in missing))
             try:
                 pending = {executor.submit(pool.execute_job, job, None): job for job in missing}
                 failure: BaseException | None = None

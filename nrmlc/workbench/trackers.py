@@ -47,7 +47,7 @@ from nrmlc.workbench.jobs import CACHE_EPOCH, CachedJob, RunSpec, _count, _real,
 #: Part of an imported tracker's run key: bumped when :meth:`InitUpdateJob.execute` changes what it
 #: gives the tracker or how it times it (our code version is not in these keys: the user's tracker
 #: does not depend on it).
-RUNNER_VERSION = 1
+RUNNER_VERSION = 2
 #: The option :class:`ImportedTracker`'s messages name.
 OPTION = "--tracker"
 #: What the factory must return, for help texts and messages.
@@ -216,8 +216,8 @@ class InitUpdateJob(CachedJob):
     """One run of an imported tracker (:class:`ImportedTracker`) over a sequence, through
     ``init`` and ``update`` only.
 
-    ``seconds_tracking`` is the time spent in ``update`` (``init`` excluded: fps is frames after the
-    first over it); ``seconds_total`` is the whole run, with making the tracker and reading frames.
+    ``seconds_tracking`` is the time spent in ``init`` and ``update``, as NRMLC's runs count it
+    (:class:`nrmlc.tracker.loop.TrackResult`: fps is frames after the first over it); ``seconds_total`` is the whole run, with making the tracker and reading frames.
     Its result is a :class:`nrmlc.tracker.loop.TrackResult` without states.
 
     Attributes
@@ -276,8 +276,8 @@ class InitUpdateJob(CachedJob):
             except Exception as exc:
                 raise TrackerFailed(f"{OPTION} {self.tracker}: {step} on frame {index + 1} of {sequence.name} "
                                     f"raised {type(exc).__name__}: {' '.join(str(exc).split())}") from exc
+            tracking += time.perf_counter() - tick
             if index > 0:
-                tracking += time.perf_counter() - tick
                 boxes[index] = check_box(output, self.tracker, sequence, index)
         return {"boxes": boxes, "seconds_tracking": np.float64(tracking),
                 "seconds_total": np.float64(time.perf_counter() - start)}
