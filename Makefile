@@ -12,6 +12,9 @@
 #       a numba cache and a run cache of its own; docs/RELIABILITY.md#determinism)
 #       NUMBA_TARGET=cpu (compile the kernels for that CPU only, with caches of its own)
 #   make test                    the linter (ruff) and the test suite (what CI runs)
+#   make mutate                  mutation testing (mutmut) of the core, in a copy (.cache/mutate), with each
+#                                module's fast tests; prints the score per module (not in CI: over an hour
+#                                here; docs/research/mutation.md). MUTATE_JOBS=2, MUTANTS='glob glob'
 #   make theorem                 numeric checks of Theorem 1 (seconds)
 #   make bench [DATA=path]       kernel and tracker timings -> out/figures/bench.md (OUT=figures: committed)
 #   make more-sequences MIRRORS=dir [DEST=../devdata]
@@ -56,7 +59,7 @@ MIRRORS     ?=
 DEST        ?= ../devdata
 LAY_SEQUENCES := ../shared/tools/lay_sequences.py
 
-.PHONY: all install test figures theorem bench more-sequences clean-runs clean
+.PHONY: all install test mutate figures theorem bench more-sequences clean-runs clean
 
 all: figures
 
@@ -79,6 +82,33 @@ $(TEST_STAMP): $(STAMP)
 test: $(TEST_STAMP)
 	$(PY) -m ruff check .
 	$(PY) -m pytest
+
+# Mutation testing (docs/research/mutation.md): mutmut (the test extra) in a copy of the sources, so the working
+# tree is never touched; the modules and their test subset are [tool.mutmut] in pyproject.toml, MUTANTS picks
+# the functions (mutmut's globs; in algorithm.py only the template update and the occlusion judgement).
+MUTATE_DIR  ?= .cache/mutate
+MUTATE_JOBS ?= 2
+MUTANTS     ?= nrmlc.workbench.metrics.* nrmlc.workbench.otb_results.* nrmlc.tracker.templates.* \
+               nrmlc.tracker.algorithm.*update_templates* nrmlc.tracker.algorithm.*_result* nrmlc.kernels.*
+MUTMUT      := $(abspath $(VENV))/bin/mutmut
+
+mutate: $(TEST_STAMP)
+	rm -rf $(MUTATE_DIR) && mkdir -p $(MUTATE_DIR)
+	tar -cf - --exclude=__pycache__ nrmlc tests docs experiments README.md pyproject.toml | tar -xf - -C $(MUTATE_DIR)
+	cd $(MUTATE_DIR) && NUMBA_NUM_THREADS=1 OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1 nice -n 10 \
+	    $(MUTMUT) run --max-children $(MUTATE_JOBS) $(foreach m,$(MUTANTS),'$(m)') > mutmut.log 2>&1 \
+	    || { tail -c 3000 mutmut.log; exit 1; }
+	@cd $(MUTATE_DIR) && $(MUTMUT) results --all true > results.txt && \
+	  grep -v ': not checked$$' results.txt | grep -v ': killed$$' > survivors.txt; \
+	  awk -F': ' '{ n = $$1; sub(/^ +/, "", n); n = substr(n, 1, index(n, ".x") - 1); s = $$2; \
+	    if (s == "not checked") next; if (!(n in all)) order[++k] = n; all[n]++; c[n, s]++ } \
+	    END { printf "%-28s %8s %7s %8s %8s %8s %10s %6s\n", "module", "mutants", "killed", "timeout", \
+	      "survived", "no tests", "suspicious", "score"; \
+	      for (i = 1; i <= k; i++) { n = order[i]; d = c[n, "killed"] + c[n, "timeout"]; \
+	        printf "%-28s %8d %7d %8d %8d %8d %10d %5.1f%%\n", n, all[n], c[n, "killed"], c[n, "timeout"], \
+	          c[n, "survived"], c[n, "no tests"], c[n, "suspicious"], 100 * d / all[n] } }' results.txt; \
+	  echo "(score: killed + timeout over all mutants run; the others: $(MUTATE_DIR)/survivors.txt," \
+	       "'cd $(MUTATE_DIR) && $(MUTMUT) show NAME')"
 
 figures: $(STAMP)
 	$(TARGET_ENV) $(PY) -m experiments.run_all $(if $(NUMBA_TARGET),--cache .cache/runs-$(TARGET_NAME)) $(if $(DATA),--data "$(DATA)") $(if $(OUT),--out "$(OUT)") \
