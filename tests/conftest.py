@@ -28,3 +28,17 @@ def real_data_root() -> Path:
     if not root.is_dir():
         pytest.skip(f"real data not found at {root} (set NRMLC_DATA)")
     return root
+
+
+@pytest.fixture(scope="module")
+def data_root(tmp_path_factory) -> Path:
+    """Three small synthetic sequences in the OTB layout (a folder each), made once per module."""
+    from nrmlc.testing.scenes import write_small_suite
+
+    return write_small_suite(tmp_path_factory.mktemp("data"), n_sequences=3)
+
+
+@pytest.fixture(scope="module")
+def names(data_root) -> list[str]:
+    """The sequence names of :func:`data_root`, sorted."""
+    return sorted(p.name for p in data_root.iterdir())

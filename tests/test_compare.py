@@ -18,7 +18,6 @@ from nrmlc.workbench.report import plot_comparison
 from nrmlc.workbench.score import Comparison, TrackerScores, compare
 from nrmlc.workbench.speed import plot_speed
 from nrmlc.data import open_sequence
-from nrmlc.testing.scenes import write_small_suite
 from nrmlc.errors import DataError
 from nrmlc.workbench.metrics import evaluate
 
@@ -32,16 +31,6 @@ def run_main(argv, capsys):
 def write_boxes(path: Path, boxes) -> None:
     path.parent.mkdir(parents=True, exist_ok=True)
     path.write_text("\n".join(",".join(f"{v:g}" for v in row) for row in boxes) + "\n")
-
-
-@pytest.fixture(scope="module")
-def data_root(tmp_path_factory) -> Path:
-    return write_small_suite(tmp_path_factory.mktemp("data"), n_sequences=3)
-
-
-@pytest.fixture(scope="module")
-def names(data_root) -> list[str]:
-    return sorted(p.name for p in data_root.iterdir())
 
 
 def shifted(data_root, name, dx, n=None):

@@ -22,7 +22,6 @@ import scipy.io
 
 from nrmlc.cli import main
 from nrmlc.data import open_sequence
-from nrmlc.testing.scenes import write_small_suite
 from nrmlc.workbench import benchmark, otb_results
 from nrmlc.workbench.attributes import MAX_ATTRIBUTE_BYTES
 from nrmlc.workbench.manifest import MAX_MANIFEST_BYTES
@@ -34,16 +33,6 @@ TARGET = "synth-01"
 
 
 # ------------------------------------------------------------------ inputs
-@pytest.fixture(scope="module")
-def data_root(tmp_path_factory) -> Path:
-    return write_small_suite(tmp_path_factory.mktemp("data"), n_sequences=3)
-
-
-@pytest.fixture(scope="module")
-def names(data_root) -> list[str]:
-    return sorted(p.name for p in data_root.iterdir())
-
-
 def truth(data_root, name) -> np.ndarray:
     return open_sequence(data_root / name).groundtruth
 
@@ -70,42 +59,40 @@ def rect_fields(boxes, fps=20.0) -> dict:
             "len": np.array([[len(boxes)]]), "startFrame": np.array([[1]]), "annoBegin": np.array([[1]])}
 
 
+def folder_of(parent: Path, folder_name: str, names, write) -> Path:
+    """A new folder ``parent/folder_name`` holding ``write(folder, name)``'s file for each sequence."""
+    folder = parent / folder_name
+    folder.mkdir()
+    for index, name in enumerate(names):
+        write(folder, index, name)
+    return folder
+
+
 @pytest.fixture()
 def txt_folder(data_root, names, tmp_path) -> Path:
-    folder = tmp_path / "Peer"
-    folder.mkdir()
-    for name in names:
-        (folder / f"{name}.txt").write_text(box_text(shifted(data_root, name)))
-    return folder
+    return folder_of(tmp_path, "Peer", names, lambda folder, _, name: (folder / f"{name}.txt").write_text(
+        box_text(shifted(data_root, name))))
 
 
 @pytest.fixture()
 def mat_folder(data_root, names, tmp_path) -> Path:
-    folder = tmp_path / "OTB"
-    folder.mkdir()
-    for name in names:
-        save_mat(folder / f"{name}_Mat.mat", **rect_fields(shifted(data_root, name)))
-    return folder
+    return folder_of(tmp_path, "OTB", names, lambda folder, _, name: save_mat(
+        folder / f"{name}_Mat.mat", **rect_fields(shifted(data_root, name))))
 
 
 @pytest.fixture()
 def attribute_folder(names, tmp_path) -> Path:
-    folder = tmp_path / "anno"
-    folder.mkdir()
-    for i, name in enumerate(names):
-        flags = ["0"] * 11
-        flags[i] = "1"
-        (folder / f"{name}.txt").write_text(",".join(flags) + "\n")
-    return folder
+    def write(folder, index, name):  # each sequence has one attribute of its own
+        (folder / f"{name}.txt").write_text(",".join("1" if i == index else "0" for i in range(11)) + "\n")
+
+    return folder_of(tmp_path, "anno", names, write)
 
 
 @pytest.fixture()
 def bench_folder(data_root, names, tmp_path) -> Path:
     """What ``nrmlc benchmark --seeds 0`` leaves: results, and a manifest of their runs."""
-    folder = tmp_path / "NRMLC"
-    folder.mkdir()
-    for name in names:
-        (folder / f"{name}.txt").write_text(box_text(shifted(data_root, name, 1.0)))
+    folder = folder_of(tmp_path, "NRMLC", names, lambda folder, _, name: (folder / f"{name}.txt").write_text(
+        box_text(shifted(data_root, name, 1.0))))
     manifest = {"settings": {"params": {}, "max_frames": None, "data": str(data_root.resolve())},
                 "primary_seed": 0,
                 "runs": {name: {"0": {"frames": N_FRAMES, "fps": 10.0, "scores": None, "code_version": "t"}}
@@ -168,39 +155,31 @@ def truncated(path: Path) -> None:
 
 
 # ------------------------------------------------------------------ result .txt files
-RESULT_ERRORS = {
-    "link": (dangling_link, "broken symbolic link"),
-    "fifo": (fifo, "not a regular file"),
-    "folder": (lambda p: (p.unlink(), p.mkdir()), "not a regular file"),
-    "oversized": (lambda p: sparse(p, (1 << 30) + 1), "is too large (result file"),
+#: case -> (how the file is spoilt, what the line says, whether it stops the command or is a note).
+RESULT_CASES = {
+    "link": (dangling_link, "broken symbolic link", "error"),
+    "fifo": (fifo, "not a regular file", "error"),
+    "folder": (lambda p: (p.unlink(), p.mkdir()), "not a regular file", "error"),
+    "oversized": (lambda p: sparse(p, (1 << 30) + 1), "is too large (result file", "error"),
+    "truncated": (lambda p: p.write_text(p.read_text()[:-9]), "not used, unreadable", "note"),
+    "text": (lambda p: p.write_text("a,b,c,d\n" * N_FRAMES), "not used, unreadable", "note"),
+    "binary": (lambda p: p.write_bytes(bytes(range(256)) * 4), "not used, unreadable", "note"),
+    "empty": (lambda p: p.write_text(""), "not used, unreadable", "note"),
 }
 
 
-@pytest.mark.parametrize("case", sorted(RESULT_ERRORS))
-def test_result_file_that_cannot_be_read_is_refused_by_name(case, txt_folder, data_root, capsys):
-    make, what = RESULT_ERRORS[case]
-    path = txt_folder / f"{TARGET}.txt"
-    make(path)
-    code, _, err = evaluate(txt_folder, data_root, capsys)
-    assert_error(code, err, path, what)
-
-
-RESULT_NOTES = {
-    "truncated": (lambda p: p.write_text(p.read_text()[:-9]), "not used, unreadable"),
-    "text": (lambda p: p.write_text("a,b,c,d\n" * N_FRAMES), "not used, unreadable"),
-    "binary": (lambda p: p.write_bytes(bytes(range(256)) * 4), "not used, unreadable"),
-    "empty": (lambda p: p.write_text(""), "not used, unreadable"),
-}
-
-
-@pytest.mark.parametrize("case", sorted(RESULT_NOTES))
-def test_malformed_result_file_is_a_note_naming_it(case, txt_folder, data_root, capsys):
-    make, what = RESULT_NOTES[case]
+@pytest.mark.parametrize("case", sorted(RESULT_CASES))
+def test_result_file_that_cannot_be_read_is_named(case, txt_folder, data_root, capsys):
+    """Unreadable as a file: one error line; readable but malformed: a note, the sequence failed."""
+    make, what, verdict = RESULT_CASES[case]
     path = txt_folder / f"{TARGET}.txt"
     make(path)
     code, result, err = evaluate(txt_folder, data_root, capsys)
-    assert_note(code, err, path, what)
-    assert auc(result, "Peer") == 0.0
+    if verdict == "error":
+        assert_error(code, err, path, what)
+    else:
+        assert_note(code, err, path, what)
+        assert auc(result, "Peer") == 0.0
 
 
 def test_non_finite_result_rows_are_failed_frames(txt_folder, data_root, capsys):
@@ -214,14 +193,18 @@ def test_non_finite_result_rows_are_failed_frames(txt_folder, data_root, capsys)
     assert entry["n_missing"] == 2 and entry["file"] == str(path)
 
 
-@pytest.mark.parametrize("suffix", [".TXT", ".Txt"])
-def test_result_file_extension_in_any_case_is_the_same_file(suffix, txt_folder, data_root, capsys):
-    _, before, _ = evaluate(txt_folder, data_root, capsys)
-    path = txt_folder / f"{TARGET}.txt"
+@pytest.mark.parametrize("kind, file_name, suffix", [("txt", f"{TARGET}.txt", ".TXT"), ("txt", f"{TARGET}.txt", ".Txt"),
+                                                     ("mat", f"{TARGET}_Mat.mat", ".MAT"),
+                                                     ("mat", f"{TARGET}_Mat.mat", ".Mat")])
+def test_result_file_extension_in_any_case_is_the_same_file(kind, file_name, suffix, data_root, capsys, request):
+    folder = request.getfixturevalue(f"{kind}_folder")
+    tracker = "Peer" if kind == "txt" else "Mat"
+    _, before, _ = evaluate(folder, data_root, capsys)
+    path = folder / file_name
     path.rename(path.with_suffix(suffix))
-    code, after, err = evaluate(txt_folder, data_root, capsys)
+    code, after, err = evaluate(folder, data_root, capsys)
     assert code == 0 and "no result file" not in err, err
-    assert auc(after, "Peer") == auc(before, "Peer") > 0
+    assert auc(after, tracker) == auc(before, tracker) > 0
 
 
 def test_two_cases_of_one_result_file_are_refused(txt_folder, data_root, capsys):
@@ -242,10 +225,10 @@ def test_hidden_temporary_is_not_a_result(txt_folder, data_root, capsys):
 @pytest.mark.parametrize("case", ["link", "fifo"])
 def test_single_result_file_that_cannot_be_read_is_refused(case, txt_folder, data_root, capsys):
     path = txt_folder / f"{TARGET}.txt"
-    RESULT_ERRORS[case][0](path)
+    RESULT_CASES[case][0](path)
     code, _, err = run_main(["evaluate", "--results", path, "--groundtruth",
                              data_root / TARGET / "groundtruth_rect.txt"], capsys)
-    assert_error(code, err, path, RESULT_ERRORS[case][1])
+    assert_error(code, err, path, RESULT_CASES[case][1])
 
 
 # ------------------------------------------------------------------ OTB .mat files
@@ -372,16 +355,6 @@ def test_memory_running_out_on_a_result_file_stops_the_command(txt_folder, data_
     monkeypatch.setattr(nrmlc.data, "read_box_file", out_of_memory)
     code, _, err = evaluate(txt_folder, data_root, capsys)
     assert_error(code, err, txt_folder, "ran out of memory")
-
-
-@pytest.mark.parametrize("suffix", [".MAT", ".Mat"])
-def test_mat_extension_in_any_case_is_the_same_file(suffix, mat_folder, data_root, capsys):
-    _, before, _ = evaluate(mat_folder, data_root, capsys)
-    path = mat_folder / f"{TARGET}_Mat.mat"
-    path.rename(path.with_suffix(suffix))
-    code, after, err = evaluate(mat_folder, data_root, capsys)
-    assert code == 0 and "no result file" not in err, err
-    assert auc(after, "Mat") == auc(before, "Mat") > 0
 
 
 # ------------------------------------------------------------------ a folder's kind

@@ -65,17 +65,22 @@ _TARGET_SUFFIX = re.compile(r"^(.+)-(\d+)$")
 _NUMBER = re.compile(r"(\d+)")
 
 
-def _check_regular(path: Path) -> None:
-    """Refuse a broken or looping symlink and anything that is not a regular file."""
+def check_entry(path: Path, what: str | None = None, folder: bool = False) -> None:
+    """Refuse a broken or looping symlink, and anything that is not a regular file (with
+    ``folder``: not a folder); ``what`` names the entry's role in the messages."""
+    role = f"; a {what}" if what else ""
     try:
         mode = os.stat(path).st_mode
     except OSError as exc:
         if exc.errno == errno.ELOOP:
-            raise DataError(f"{path}: symbolic link loop") from None
+            raise DataError(f"{path}: symbolic link loop" + (f" (a {what})" if what else "")) from None
         if exc.errno == errno.ENOENT and path.is_symlink():
-            raise DataError(f"{path}: broken symbolic link (its target {os.readlink(path)!r} does not exist)") from None
-        raise DataError(f"{path}: cannot read ({exc.strerror or exc})") from None
-    if not stat.S_ISREG(mode):
+            raise DataError(f"{path}: broken symbolic link (its target {os.readlink(path)!r} does not exist"
+                            f"{role})") from None
+        raise DataError(f"{path}: cannot read ({exc.strerror or exc}{role})") from None
+    if folder and not stat.S_ISDIR(mode):
+        raise DataError(f"{path}: named as a {what or 'folder'}, but not a folder")
+    if not folder and not stat.S_ISREG(mode):
         raise DataError(f"{path}: not a regular file")
 
 
@@ -156,11 +161,12 @@ def find_images(folder: str | os.PathLike) -> list[Path]:
     if not images:
         raise DataError(f"{image_folder}: no images ({', '.join(IMAGE_EXTENSIONS)})")
     for image in images:
-        _check_regular(image)
+        check_entry(image)
     return order_frames(images)
 
-def _present(path: Path) -> bool:
-    """Whether ``path`` is there as a readable regular file; False when nothing is there.
+def present(path: Path, what: str | None = None, folder: bool = False) -> bool:
+    """Whether ``path`` is there as a readable regular file (with ``folder``: a folder); False when
+    nothing is there.
 
     Something there that cannot be read as a file (a dangling or looping link, a FIFO, a
     device, a folder) is an error naming it, not an absence: it would silently turn an
@@ -168,7 +174,7 @@ def _present(path: Path) -> bool:
     """
     if not os.path.lexists(path):
         return False
-    _check_regular(path)
+    check_entry(Path(path), what, folder)
     return True
 
 
@@ -183,7 +189,7 @@ def find_target_groundtruths(folder: str | os.PathLike) -> dict[int, Path]:
     found = {}
     for path in sorted(Path(folder).iterdir()):
         match = _TARGET_GROUNDTRUTH.match(path.name)
-        if match and _present(path):
+        if match and present(path):
             target = int(match.group(1))
             if target in found:  # groundtruth_rect.1.txt and groundtruth_rect.01.txt
                 raise DataError(f"{folder}: {found[target].name} and {path.name} are both target {target}; keep one")
@@ -262,7 +268,7 @@ def open_sequence(
             raise DataError(f"{folder}: no groundtruth_rect.{target}.txt (targets: {available})")
         groundtruth_path = targets[target]
         name = f"{base_name}-{target}"
-    elif _present(folder / GROUNDTRUTH_NAME):
+    elif present(folder / GROUNDTRUTH_NAME):
         groundtruth_path = folder / GROUNDTRUTH_NAME
     elif targets:
         first_target = next(iter(targets))
@@ -271,7 +277,7 @@ def open_sequence(
 
     if groundtruth_path is None:
         for pack_file in (folder / DATAINFO_NAME, *groundtruth_mats(folder)):
-            _present(pack_file)  # a pack's files that exist must be readable files
+            present(pack_file)  # a pack's files that exist must be readable files
     from_sparsepack = groundtruth_path is None and is_sparsepack(folder)
     if groundtruth_path is not None:
         groundtruth = read_box_file(groundtruth_path)
@@ -321,7 +327,7 @@ def list_sequences(root: str | os.PathLike) -> list[Sequence]:
         if not (folder / IMAGE_FOLDER).is_dir():
             continue
         targets = find_target_groundtruths(folder)
-        if targets and not _present(folder / GROUNDTRUTH_NAME):
+        if targets and not present(folder / GROUNDTRUTH_NAME):
             sequences.extend(open_sequence(folder, target) for target in targets)
         else:
             sequences.append(open_sequence(folder))

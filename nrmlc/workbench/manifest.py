@@ -221,7 +221,7 @@ def read_manifest(folder, advice: str = "repair or remove it") -> Manifest | Non
 
 def _drop_unwritten(folder: Path, data: dict) -> list[str]:
     """Remove from ``data`` the runs whose result file is not in ``folder``; one line for each."""
-    from nrmlc.data.otb import _present
+    from nrmlc.data.otb import present
 
     lines = []
     primary = data.get("primary_seed")
@@ -229,7 +229,7 @@ def _drop_unwritten(folder: Path, data: dict) -> list[str]:
         seeds = data["runs"][name]
         for seed in list(seeds):
             path = result_file(folder, name, int(seed), primary)
-            if not _present(path):
+            if not present(path):
                 del seeds[seed]
                 lines.append(f"{path}: its run (seed {seed}) is in {MANIFEST_NAME} but the file is not there; "
                              f"that run is left out")

@@ -68,10 +68,10 @@ def check_input_file(path, what: str, max_bytes: int) -> bool:
     InputTooLarge
         A file of more than ``max_bytes``.
     """
-    from nrmlc.data.otb import _present
+    from nrmlc.data.otb import present
 
     path = Path(path)
-    if not _present(path):
+    if not present(path):
         return False
     size = path.stat().st_size
     if size > max_bytes:
@@ -81,42 +81,12 @@ def check_input_file(path, what: str, max_bytes: int) -> bool:
 
 
 def check_input_folder(path, what: str) -> bool:
-    """Whether a folder ``evaluate`` reads is there; refuse, naming it, something there by its name
-    that is no folder (a broken or looping link, a file, a FIFO): never taken for an absent folder.
+    """:func:`check_input_file` for a folder ``evaluate`` reads (``what``: ``"seed's results
+    folder"``): something there by its name that is no folder (a broken or looping link, a file, a
+    FIFO) is a :class:`DataError` naming it, never taken for an absent folder."""
+    from nrmlc.data.otb import present
 
-    Parameters
-    ----------
-    path : path
-    what : str
-        What the folder is, for messages (``"seed's results folder"``).
-
-    Returns
-    -------
-    bool
-        False when nothing is there (not even a link).
-
-    Raises
-    ------
-    DataError
-    """
-    import errno
-    import stat
-
-    path = Path(path)
-    if not os.path.lexists(path):
-        return False
-    try:
-        mode = os.stat(path).st_mode
-    except OSError as exc:
-        if exc.errno == errno.ELOOP:
-            raise DataError(f"{path}: symbolic link loop (a {what})") from None
-        if exc.errno == errno.ENOENT and path.is_symlink():
-            raise DataError(f"{path}: broken symbolic link (its target {os.readlink(path)!r} does not exist; "
-                            f"a {what})") from None
-        raise DataError(f"{path}: cannot read ({exc.strerror or exc}; a {what})") from None
-    if not stat.S_ISDIR(mode):
-        raise DataError(f"{path}: named as a {what}, but not a folder")
-    return True
+    return present(Path(path), what, folder=True)
 
 
 def _size_text(n_bytes: int) -> str:
