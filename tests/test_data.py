@@ -601,3 +601,26 @@ def test_synthetic_spec_types_and_bounds(field, value, message):
 
     with pytest.raises(ParameterError, match=message):
         SyntheticSpec(**{field: value})
+
+
+@pytest.mark.parametrize("name", ["GROUNDTRUTH_RECT.TXT", "Groundtruth_rect.txt", "groundtruth_rect.TXT"])
+def test_ground_truth_named_in_any_case_is_read(name, tmp_path):
+    # As a case-blind file system (Windows, macOS) lets a dataset be written; result files are read so too.
+    folder = make_sequence_folder(tmp_path / "Seq", n_frames=3, groundtruth=None)
+    (folder / name).write_text(gt_lines(3))
+    np.testing.assert_array_equal(open_sequence(folder).groundtruth, [[i + 1, 2, 3, 4] for i in range(3)])
+    assert [s.name for s in list_sequences(tmp_path)] == ["Seq"]
+
+
+def test_ground_truth_in_two_cases_is_refused(tmp_path):
+    folder = make_sequence_folder(tmp_path / "Seq", n_frames=3)
+    (folder / "GROUNDTRUTH_RECT.TXT").write_text(gt_lines(3))
+    with pytest.raises(DataError, match=r"GROUNDTRUTH_RECT\.TXT and groundtruth_rect\.txt are both the ground truth"):
+        open_sequence(folder)
+
+
+def test_target_ground_truth_named_in_any_case_is_read(tmp_path):
+    folder = make_sequence_folder(tmp_path / "Jog", n_frames=2, groundtruth=None)
+    (folder / "GroundTruth_Rect.2.TXT").write_text("5,5,2,2\n6,6,2,2\n")
+    assert [s.name for s in list_sequences(tmp_path)] == ["Jog-2"]
+    np.testing.assert_array_equal(open_sequence(folder, target=2).init_box, [5, 5, 2, 2])

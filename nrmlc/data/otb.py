@@ -60,7 +60,7 @@ from nrmlc.errors import DataError, ParameterError
 IMAGE_FOLDER = "img"
 IMAGE_EXTENSIONS = (".jpg", ".jpeg", ".png", ".bmp")
 GROUNDTRUTH_NAME = "groundtruth_rect.txt"
-_TARGET_GROUNDTRUTH = re.compile(r"^groundtruth_rect\.(\d+)\.txt$")
+_TARGET_GROUNDTRUTH = re.compile(r"^groundtruth_rect\.(\d+)\.txt$", re.IGNORECASE)
 _TARGET_SUFFIX = re.compile(r"^(.+)-(\d+)$")
 _NUMBER = re.compile(r"(\d+)")
 
@@ -178,6 +178,21 @@ def present(path: Path, what: str | None = None, folder: bool = False) -> bool:
     return True
 
 
+def find_groundtruth(folder: str | os.PathLike) -> Path | None:
+    """The folder's ``groundtruth_rect.txt``, its name in any case (``GROUNDTRUTH_RECT.TXT``, as
+    written on a case-blind file system), or None; hidden names are never it.
+
+    Raises
+    ------
+    DataError
+        If it is not a readable regular file, or two names differ only in case.
+    """
+    found = [path for path in sorted(Path(folder).iterdir()) if path.name.lower() == GROUNDTRUTH_NAME]
+    if len(found) > 1:
+        raise DataError(f"{folder}: {' and '.join(p.name for p in found)} are both the ground truth; keep one")
+    return found[0] if found and present(found[0]) else None
+
+
 def find_target_groundtruths(folder: str | os.PathLike) -> dict[int, Path]:
     """Per-target ground-truth files ``groundtruth_rect.<k>.txt``, keyed by ``k``.
 
@@ -268,8 +283,8 @@ def open_sequence(
             raise DataError(f"{folder}: no groundtruth_rect.{target}.txt (targets: {available})")
         groundtruth_path = targets[target]
         name = f"{base_name}-{target}"
-    elif present(folder / GROUNDTRUTH_NAME):
-        groundtruth_path = folder / GROUNDTRUTH_NAME
+    elif (single := find_groundtruth(folder)) is not None:
+        groundtruth_path = single
     elif targets:
         first_target = next(iter(targets))
         groundtruth_path = targets[first_target]
@@ -327,7 +342,7 @@ def list_sequences(root: str | os.PathLike) -> list[Sequence]:
         if not (folder / IMAGE_FOLDER).is_dir():
             continue
         targets = find_target_groundtruths(folder)
-        if targets and not present(folder / GROUNDTRUTH_NAME):
+        if targets and find_groundtruth(folder) is None:
             sequences.extend(open_sequence(folder, target) for target in targets)
         else:
             sequences.append(open_sequence(folder))
