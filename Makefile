@@ -92,10 +92,14 @@ MUTANTS     ?= nrmlc.workbench.metrics.* nrmlc.workbench.otb_results.* nrmlc.tra
                nrmlc.tracker.algorithm.*update_templates* nrmlc.tracker.algorithm.*_result* nrmlc.kernels.*
 MUTMUT      := $(abspath $(VENV))/bin/mutmut
 
+# NUMBA_THREADING_LAYER=workqueue: numba's GNU OpenMP layer raise(SIGTERM)s in a child forked after its parent
+# used it, and mutmut forks each mutant's worker after running the tests once (stats): without it every mutant
+# whose tests run a parallel kernel died at once and was counted 'suspicious'.
 mutate: $(TEST_STAMP)
 	rm -rf $(MUTATE_DIR) && mkdir -p $(MUTATE_DIR)
 	tar -cf - --exclude=__pycache__ nrmlc tests docs experiments README.md pyproject.toml | tar -xf - -C $(MUTATE_DIR)
-	cd $(MUTATE_DIR) && NUMBA_NUM_THREADS=1 OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1 nice -n 10 \
+	cd $(MUTATE_DIR) && NUMBA_NUM_THREADS=1 OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1 NUMBA_THREADING_LAYER=workqueue \
+	    nice -n 10 \
 	    $(MUTMUT) run --max-children $(MUTATE_JOBS) $(foreach m,$(MUTANTS),'$(m)') > mutmut.log 2>&1 \
 	    || { tail -c 3000 mutmut.log; exit 1; }
 	@cd $(MUTATE_DIR) && $(MUTMUT) results --all true > results.txt && \

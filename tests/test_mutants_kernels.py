@@ -1,0 +1,171 @@
+"""The kernels' argument checks, each refusal with its exact message (docs/research/mutation.md).
+
+Written against the mutants of ``nrmlc/kernels/checks.py``: every check's message (matched
+whole), each bound at and just beyond its edge, and the values the checks return.
+"""
+import re
+
+import numpy as np
+import pytest
+
+from nrmlc.errors import ParameterError
+from nrmlc.kernels.checks import (check_array, check_finite, check_flag, check_indices, check_int, check_length,
+                                  check_nonnegative_real)
+
+
+def refused(message):
+    return pytest.raises(ParameterError, match=f"^{re.escape(message)}$")
+
+
+def test_check_array_accepts_an_allowed_c_contiguous_array():
+    good = np.zeros((3, 4), dtype=np.float32)
+    assert check_array("x", good, np.float32, 2) is None
+    assert check_array("x", good, "float32", 2) is None
+    assert check_array("x", good, (np.float64, np.float32), 2) is None
+    assert check_array("x", good, [np.float32], 2) is None
+    assert check_array("x", np.zeros(5, dtype=np.int64), (np.dtype(np.int64),), 1) is None
+
+
+def test_check_array_refusals_name_the_argument():
+    with refused("x must be a numpy array, got list"):
+        check_array("x", [[1.0]], np.float64, 2)
+    with refused("x must have dtype float32, got float64"):
+        check_array("x", np.zeros((2, 2)), np.float32, 2)
+    with refused("x must have dtype float32 or float64, got int64"):
+        check_array("x", np.zeros((2, 2), dtype=np.int64), (np.float32, np.float64), 2)
+    with refused("x must have dtype int64, got int32"):
+        check_array("x", np.zeros(2, dtype=np.int32), [np.int64], 1)
+    with refused("x must be 2-D, got shape (3,)"):
+        check_array("x", np.zeros(3), np.float64, 2)
+    with refused("x must be 1-D, got shape (1, 3)"):
+        check_array("x", np.zeros((1, 3)), np.float64, 1)
+    with refused("x must be C-contiguous"):
+        check_array("x", np.zeros((3, 4))[:, ::2], np.float64, 2)
+    with refused("x must be C-contiguous"):
+        check_array("x", np.asfortranarray(np.zeros((3, 4))), np.float64, 2)
+
+
+def test_check_length_names_rows_or_entries():
+    assert check_length("w", np.zeros((4, 2)), 4, "dots has 4 rows") is None
+    with refused("w has 3 rows, dots has 4 rows"):
+        check_length("w", np.zeros((3, 2)), 4, "dots has 4 rows")
+    with refused("w has 5 entries, dots has 4 rows"):
+        check_length("w", np.zeros(5), 4, "dots has 4 rows")
+
+
+def test_check_int_bounds_and_types():
+    assert check_int("n", 1, 1) == 1
+    assert check_int("n", 10**12, 1) == 10**12  # no upper bound without maximum
+    assert check_int("n", 5, 1, 5) == 5  # both edges are in
+    value = check_int("n", np.int64(3), 0, 5)
+    assert value == 3 and type(value) is int
+    with refused("n must be >= 1, got 0"):
+        check_int("n", 0, 1)
+    with refused("n must be >= 1, <= 5, got 6"):
+        check_int("n", 6, 1, 5)
+    with refused("n must be >= 1, <= 5, got 0"):
+        check_int("n", 0, 1, 5)
+    with refused("n must be an integer, got True"):
+        check_int("n", True, 0)
+    with refused(f"n must be an integer, got {np.bool_(False)!r}"):
+        check_int("n", np.bool_(False), 0)
+    with refused("n must be an integer, got 1.5"):
+        check_int("n", 1.5, 0)
+    with refused("n must be an integer, got '3'"):
+        check_int("n", "3", 0)
+
+
+def test_check_nonnegative_real():
+    value = check_nonnegative_real("r", 0)
+    assert value == 0.0 and type(value) is float  # zero is in
+    value = check_nonnegative_real("r", np.float32(0.5))
+    assert value == 0.5 and type(value) is float
+    assert check_nonnegative_real("r", 1e300) == 1e300
+    with refused("r must be finite and >= 0, got -1e-300"):
+        check_nonnegative_real("r", -1e-300)
+    with refused("r must be finite and >= 0, got inf"):
+        check_nonnegative_real("r", float("inf"))
+    with refused("r must be finite and >= 0, got nan"):
+        check_nonnegative_real("r", float("nan"))
+    with refused("r must be a real number, got False"):
+        check_nonnegative_real("r", False)
+    with refused(f"r must be a real number, got {np.bool_(True)!r}"):
+        check_nonnegative_real("r", np.bool_(True))
+    with refused("r must be a real number, got '1'"):
+        check_nonnegative_real("r", "1")
+    with refused("r must be a real number, got (1+0j)"):
+        check_nonnegative_real("r", 1 + 0j)
+
+
+def test_check_flag():
+    assert check_flag("f", True) is True
+    assert check_flag("f", np.bool_(False)) is False  # a python bool back
+    with refused("f must be a bool, got 1"):
+        check_flag("f", 1)
+    with refused("f must be a bool, got None"):
+        check_flag("f", None)
+
+
+@pytest.mark.parametrize("bad", [np.nan, np.inf, -np.inf])
+def test_check_finite(bad):
+    assert check_finite("a", np.array([0.0, -1e308, 1e308])) is None
+    with refused("a contains NaN or infinite values"):
+        check_finite("a", np.array([0.0, bad, 1.0]))
+
+
+def test_check_indices_edges():
+    assert check_indices("i", np.array([0, 4, 2]), 5) is None  # 0 and upper - 1 are in
+    assert check_indices("i", np.zeros(0, dtype=np.int64), 0) is None  # nothing to check
+    with refused("i must lie in [0, 5)"):
+        check_indices("i", np.array([0, 5]), 5)
+    with refused("i must lie in [0, 5)"):
+        check_indices("i", np.array([-1, 4]), 5)
+    with refused("i must lie in [0, 5)"):
+        check_indices("i", np.array([[1, 2], [3, 7]]), 5)
+
+
+# -- warp.py: warp_patches' wrapper ---------------------------------------------------------------
+
+def _frame(height=12, width=16):
+    return np.arange(height * width, dtype=np.float32).reshape(height, width) % 7 + 1
+
+
+def _affines(n=2):
+    return np.tile(np.array([[1.0, 0.0, 6.0], [0.0, 1.0, 5.0]]), (n, 1, 1))
+
+
+def test_warp_patches_output():
+    from nrmlc.kernels.warp import warp_patches
+
+    patches = warp_patches(_frame(), _affines(3))
+    assert patches.shape == (3, 32 * 32) and patches.dtype == np.float32  # the default patch size is 32
+    np.testing.assert_allclose(np.linalg.norm(patches, axis=1), 1.0, rtol=1e-6)
+    small = warp_patches(_frame(), _affines(1), 2)  # the smallest grid: 2 x 2
+    assert small.shape == (1, 4)
+    assert warp_patches(_frame(), np.zeros((0, 2, 3)), 4).shape == (0, 16)
+    # a frame of one row (or one column) is a frame: every sample is that row's
+    row = warp_patches(np.ones((1, 5), np.float32), _affines(1), 4)
+    np.testing.assert_allclose(row, 0.25, rtol=1e-6)
+    column = warp_patches(np.ones((5, 1), np.float32), _affines(1), 4)
+    np.testing.assert_allclose(column, 0.25, rtol=1e-6)
+
+
+@pytest.mark.parametrize("frame, affines, patch_size, message", [
+    (np.zeros((4, 4)), _affines(), 4, "frame must have dtype float32, got float64"),
+    (np.zeros(4, np.float32), _affines(), 4, "frame must be 2-D, got shape (4,)"),
+    (np.zeros((0, 5), np.float32), _affines(), 4, "frame must be non-empty, got shape (0, 5)"),
+    (np.zeros((5, 0), np.float32), _affines(), 4, "frame must be non-empty, got shape (5, 0)"),
+    (_frame(), _affines().astype(np.float32), 4, "affines must have dtype float64, got float32"),
+    (_frame(), np.zeros((2, 3)), 4, "affines must be 3-D, got shape (2, 3)"),
+    (_frame(), np.zeros((1, 3, 3)), 4, "affines must have shape (n_particles, 2, 3), got (1, 3, 3)"),
+    (_frame(), np.zeros((1, 2, 2)), 4, "affines must have shape (n_particles, 2, 3), got (1, 2, 2)"),
+    (_frame(), np.full((1, 2, 3), np.inf), 4, "affines contains NaN or infinite values"),
+    (np.full((4, 4), np.nan, np.float32), _affines(), 4, "frame contains NaN or infinite values"),
+    (_frame(), _affines(), 1, "patch_size must be >= 2, got 1"),
+    (_frame(), _affines(), True, "patch_size must be an integer, got True"),
+])
+def test_warp_patches_refusals(frame, affines, patch_size, message):
+    from nrmlc.kernels.warp import warp_patches
+
+    with refused(message):
+        warp_patches(frame, affines, patch_size)
