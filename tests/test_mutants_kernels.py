@@ -169,3 +169,115 @@ def test_warp_patches_refusals(frame, affines, patch_size, message):
 
     with refused(message):
         warp_patches(frame, affines, patch_size)
+
+
+# -- distance.py: the public wrappers' refusals -----------------------------------------------------
+
+def _unit(n, dim=4, dtype=np.float64):
+    rows = np.random.default_rng(n).standard_normal((n, dim))
+    return np.ascontiguousarray(rows / np.linalg.norm(rows, axis=1, keepdims=True), dtype=dtype)
+
+
+@pytest.mark.parametrize("candidates, templates, message", [
+    ([[1.0]], _unit(2), "candidates must be a numpy array, got list"),
+    (_unit(2), np.zeros((2, 4), np.int64), "templates must have dtype float32 or float64, got int64"),
+    (_unit(2, dtype=np.float32), _unit(2), "templates dtype float64 differs from candidates dtype float32"),
+    (_unit(2, 4), _unit(2, 3), "templates have dim 3, candidates have dim 4"),
+])
+def test_candidate_template_dots_refusals(candidates, templates, message):
+    from nrmlc.kernels.distance import candidate_template_dots
+
+    with refused(message):
+        candidate_template_dots(candidates, templates)
+
+
+def test_float32_dots_are_the_float32_product_cast_exactly():
+    """float32 patches are multiplied in float32 (sgemm) and cast, in one call per block of 128
+    rows: exactly ``(c @ t.T).astype(float64)`` for up to 128 candidates, not a float64 product."""
+    from threadpoolctl import threadpool_limits
+
+    from nrmlc.kernels.distance import candidate_template_dots
+
+    rng = np.random.default_rng(5)
+    candidates = rng.standard_normal((100, 64)).astype(np.float32)
+    templates = rng.standard_normal((30, 64)).astype(np.float32)
+    dots = candidate_template_dots(candidates, templates)
+    assert dots.dtype == np.float64
+    with threadpool_limits(1, "blas"):
+        expected = (candidates @ templates.T).astype(np.float64)
+    np.testing.assert_array_equal(dots, expected)
+    wide = candidates.astype(np.float64) @ templates.astype(np.float64).T
+    assert not np.array_equal(dots, wide)  # the test can tell the two apart
+
+
+@pytest.mark.parametrize("dtype", [np.float32, np.float64])
+def test_dots_come_from_fixed_blocks_of_128_rows(dtype):
+    """Each block of 128 candidates is one BLAS call, whatever the number of candidates or
+    threads: OpenBLAS gives a row other bits in a call of another size (on this machine 184 of
+    450 rows differ between one call and 128-row calls), so the blocks are part of the result."""
+    from threadpoolctl import threadpool_limits
+
+    from nrmlc.kernels.distance import candidate_template_dots
+
+    rng = np.random.default_rng(1)
+    candidates = rng.standard_normal((300, 1024)).astype(dtype)
+    templates = rng.standard_normal((60, 1024)).astype(dtype)
+    with threadpool_limits(1, "blas"):  # as the kernel runs its products (BLAS rounding follows its threads)
+        expected = np.vstack([candidates[start:start + 128] @ templates.T for start in (0, 128, 256)])
+    np.testing.assert_array_equal(candidate_template_dots(candidates, templates), expected.astype(np.float64))
+
+
+def test_squared_norms_refusal_and_output():
+    from nrmlc.kernels.distance import squared_norms
+
+    with refused("vectors must be 2-D, got shape (3,)"):
+        squared_norms(np.ones(3))
+    norms = squared_norms(np.array([[3.0, 4.0], [1.0, 1.0]], np.float32))
+    assert norms.dtype == np.float64 and norms.tolist() == [25.0, 2.0]
+
+
+@pytest.mark.parametrize("changes, message", [
+    (dict(dots=np.zeros((2, 3), np.float32)), "dots must have dtype float64, got float32"),
+    (dict(candidate_sq_norms=np.ones(2, np.float32)), "candidate_sq_norms must have dtype float64, got float32"),
+    (dict(template_sq_norms=np.ones((1, 3))), "template_sq_norms must be 1-D, got shape (1, 3)"),
+    (dict(candidate_sq_norms=np.ones(3)), "candidate_sq_norms has 3 entries, dots has 2 rows"),
+    (dict(template_sq_norms=np.ones(4)), "template_sq_norms has 4 entries, dots has 3 columns"),
+    (dict(k=4), "k must be >= 1, <= 3, got 4"),
+    (dict(k=0), "k must be >= 1, <= 3, got 0"),
+])
+def test_nearest_templates_refusals(changes, message):
+    from nrmlc.kernels.distance import nearest_templates
+
+    arguments = dict(dots=np.zeros((2, 3)), candidate_sq_norms=np.ones(2), template_sq_norms=np.ones(3), k=2)
+    with refused(message):
+        nearest_templates(**{**arguments, **changes})
+
+
+@pytest.mark.parametrize("previous, kept, message", [
+    (np.eye(3), None, "template_gram: pass previous and kept together, or neither"),
+    (None, np.zeros(3, np.int64), "template_gram: pass previous and kept together, or neither"),
+    (np.eye(3, dtype=np.float32), np.zeros(3, np.int64), "previous must have dtype float64, got float32"),
+    (np.zeros((2, 3)), np.zeros(3, np.int64), "previous must be a square Gram, got shape (2, 3)"),
+    (np.eye(3), np.zeros(3, np.int32), "kept must have dtype int64, got int32"),
+    (np.eye(3), np.zeros(2, np.int64), "kept has 2 entries, templates has 3 rows"),
+    (np.eye(3), np.array([-2, 0, 1]), "kept must hold rows of previous (0..2) or -1"),
+    (np.eye(3), np.array([3, 0, 1]), "kept must hold rows of previous (0..2) or -1"),
+    (np.eye(4), np.array([4, 0, 1]), "kept must hold rows of previous (0..3) or -1"),
+])
+def test_template_gram_refusals(previous, kept, message):
+    from nrmlc.kernels.distance import template_gram
+
+    with refused(message):
+        template_gram(_unit(3), previous, kept)
+
+
+def test_template_gram_accepts_kept_at_its_edges():
+    from nrmlc.kernels.distance import template_gram
+
+    templates = _unit(3)
+    previous = template_gram(templates)
+    np.testing.assert_array_equal(template_gram(templates, previous, np.array([0, 1, 2])), previous)
+    gram = template_gram(templates, previous, np.array([-1, 1, 2]))
+    np.testing.assert_allclose(gram, templates @ templates.T, atol=1e-12)
+    with refused("templates must have dtype float32 or float64, got int64"):
+        template_gram(np.zeros((3, 4), np.int64))
