@@ -508,3 +508,44 @@ def test_a_default_cache_that_cannot_be_written_is_warned_of_as_the_default(tmp_
                                                  "cannot store runs in it ("), said
     assert "--cache .cache" not in said[0]
     assert len(summary["runs"]) == 1 and (tmp_path / "R" / "synth-01.txt").is_file()
+
+
+def _stored_run(tmp_path, computed):
+    """A cached run of one small sequence: (cache, its spec)."""
+    data = make_data(tmp_path / "S", count=1)
+    bench(data, tmp_path / "R", tmp_path / "C")
+    cache = RunCache(tmp_path / "C")
+    return cache, RunSpec(open_sequence(data / "synth-01"), SMALL, 0, None)
+
+
+def _lying_npy(shape) -> bytes:
+    """A .npy whose header claims ``shape`` of float64 and holds 16 bytes."""
+    header = repr({"descr": "<f8", "fortran_order": False, "shape": shape}).encode()
+    header += b" " * (63 - (10 + len(header)) % 64) + b"\n"
+    return b"\x93NUMPY\x01\x00" + len(header).to_bytes(2, "little") + header + bytes(16)
+
+
+@pytest.mark.parametrize("spoil, said", [
+    (lambda path: path.write_bytes(path.read_bytes()[: path.stat().st_size // 2]), "damaged cache file"),
+    (lambda path: path.write_bytes(b""), "damaged cache file"),
+    ("inflated", r"damaged cache file \(ValueError: inflates to"),
+    ("lying-header", "damaged cache file"),
+], ids=["truncated", "empty", "inflated", "lying-header"])
+def test_cut_or_oversized_cache_entry_is_computed_again(tmp_path, computed, monkeypatch, spoil, said):
+    import zipfile
+
+    import nrmlc.workbench.run_cache as run_cache
+
+    cache, spec = _stored_run(tmp_path, computed)
+    path = cache.path(spec)
+    if spoil == "inflated":
+        monkeypatch.setattr(run_cache, "MAX_ENTRY_BYTES", 100)  # the stored run inflates beyond it
+    elif spoil == "lying-header":
+        with zipfile.ZipFile(path, "w") as archive:  # 16 bytes that claim 8 TB
+            archive.writestr("boxes.npy", _lying_npy((10**12,)))
+    else:
+        spoil(path)
+    computed.clear()
+    with pytest.warns(UserWarning, match=rf"{path.name}: {said}"):
+        [result] = cache.run([spec], jobs=1, progress=False)
+    assert computed == ["synth-01"] and np.isfinite(result.boxes).all()

@@ -37,7 +37,11 @@ from nrmlc.workbench.progress import Progress
 DEFAULT_CACHE = Path(".cache") / "runs"
 
 #: What reading a damaged ``.npz`` raises.
-_DAMAGED = (zipfile.BadZipFile, OSError, ValueError, EOFError, KeyError)
+_DAMAGED = (zipfile.BadZipFile, OSError, ValueError, EOFError, KeyError, MemoryError)
+#: An entry that inflates beyond this is damage, not a run (the largest run here: 5 MB): read whole,
+#: it could take the memory the runs need. A header claiming more than it holds is a MemoryError,
+#: damage too.
+MAX_ENTRY_BYTES = 1 << 30
 
 
 def _one_line(error: BaseException) -> str:
@@ -76,6 +80,11 @@ class RunCache:
         return path.is_file() and zipfile.is_zipfile(path)
 
     def _read(self, path: Path) -> dict:
+        with zipfile.ZipFile(path) as archive:
+            inflated = sum(member.file_size for member in archive.infolist())
+        if inflated > MAX_ENTRY_BYTES:
+            raise ValueError(f"inflates to {inflated / 2**20:.0f} MB, more than a run's "
+                             f"{MAX_ENTRY_BYTES / 2**20:.0f} MB")
         with np.load(path) as arrays:
             return {name: arrays[name] for name in arrays.files}
 
