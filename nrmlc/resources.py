@@ -86,17 +86,17 @@ def _process_status(field: str) -> int | None:
     return None
 
 
-def memory_limits() -> list[tuple[int, int, str]]:
-    """Every limit on this process's memory other than the RAM: ``(limit, left, what)``, in bytes,
-    ``left`` being what the process (or its cgroup) may still take; ``what`` completes
-    "the 2.0 GB ..." in a message."""
+def memory_limits() -> list[tuple[int, int, str, bool]]:
+    """Every limit on this process's memory other than the RAM: ``(limit, left, what, own)``, in
+    bytes, ``left`` being what the process (or its cgroup) may still take; ``what`` completes
+    "the 2.0 GB ..." in a message; ``own``: the process's own limit, not one its cgroup shares."""
     limits = []
     for folder, limit_file, usage_file in _cgroup_folders():
         limit = _number_in(folder / limit_file)
         if limit is None or limit >= 2**60:  # v1 writes "no limit" as a number near 2**63
             continue
         used = _number_in(folder / usage_file) or 0
-        limits.append((limit, max(0, limit - used), f"its cgroup allows ({folder / limit_file})"))
+        limits.append((limit, max(0, limit - used), f"its cgroup allows ({folder / limit_file})", False))
     try:
         import resource
     except ImportError:  # not POSIX
@@ -109,7 +109,7 @@ def memory_limits() -> list[tuple[int, int, str]]:
         if soft == resource.RLIM_INFINITY or soft < 0:
             continue
         used = _process_status(field) or 0
-        limits.append((soft, max(0, soft - used), f"that {name} ({what}) leaves this process"))
+        limits.append((soft, max(0, soft - used), f"that {name} ({what}) leaves this process", True))
     return limits
 
 
@@ -128,10 +128,10 @@ def memory_ceiling() -> tuple[int, str] | None:
     ram = physical_memory()
     if ram is not None:
         candidates.append((ram, f"this machine's {gigabytes(ram)} of memory"))
-    for limit, left, what in memory_limits():
+    for limit, left, what, own in memory_limits():
         # A process limit counts what this process holds already; a cgroup's is shared with
         # others (the workers of one run), so its whole size is the ceiling of one of them.
-        size = left if what.startswith("that RLIMIT") else limit
+        size = left if own else limit
         candidates.append((size, f"the {gigabytes(size)} of memory {what}"))
     return min(candidates, key=lambda c: c[0]) if candidates else None
 
@@ -140,7 +140,7 @@ def available_memory() -> int | None:
     """Bytes of memory this process may take now: the RAM available without swapping
     (``MemAvailable``, else the physical size), or less where a cgroup's or the process's own
     limit leaves less."""
-    sizes = [size for size in [_free_ram()] + [left for _, left, _ in memory_limits()] if size is not None]
+    sizes = [size for size in [_free_ram()] + [limit[1] for limit in memory_limits()] if size is not None]
     return min(sizes) if sizes else None
 
 

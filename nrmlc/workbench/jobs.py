@@ -58,6 +58,29 @@ def _real(array) -> bool:
     return np.asarray(array).dtype.kind in "iuf"
 
 
+def tracking_problem(arrays: dict, n: int, columns: dict[str, int]) -> str | None:
+    """Why stored ``arrays`` are not a finished tracking run of ``n`` frames (None: they are): each
+    array of ``columns`` (name -> columns) real and of shape ``(n, columns)``, finite boxes, and
+    both times a number of seconds."""
+    for name, width in columns.items():
+        if name not in arrays:
+            return f"no {name!r} array"
+        shape = np.shape(arrays[name])
+        if shape != (n, width):
+            return f"{name!r} has shape {shape}, expected ({n}, {width}) for {n} frames"
+        if not _real(arrays[name]):
+            return f"{name!r} holds {np.asarray(arrays[name]).dtype} values, not numbers"
+    if not np.isfinite(arrays["boxes"]).all():
+        return "non-finite boxes"
+    for name in ("seconds_tracking", "seconds_total"):
+        if name not in arrays or np.shape(arrays[name]) != ():
+            return f"no {name!r} value"
+        # A run's times are what its fps is computed from: a number of seconds, >= 0.
+        if not _real(arrays[name]) or not np.isfinite(arrays[name]) or arrays[name] < 0:
+            return f"{name!r} is {np.asarray(arrays[name]).tolist()!r}, not a number of seconds"
+    return None
+
+
 def frames_tracked(sequence, n_frames: int | None) -> int:
     """Frames a run over ``sequence`` tracks: all of them, or the first ``n_frames`` (at least 1).
 
@@ -191,24 +214,7 @@ class RunSpec(CachedJob):
 
     def problem(self, arrays: dict) -> str | None:
         """Why ``arrays`` are not a finished run of this spec (None: they are)."""
-        n = self.frames()
-        for name, columns in (("boxes", 4), ("states", 6)):
-            if name not in arrays:
-                return f"no {name!r} array"
-            shape = np.shape(arrays[name])
-            if shape != (n, columns):
-                return f"{name!r} has shape {shape}, expected ({n}, {columns}) for {n} frames"
-            if not _real(arrays[name]):
-                return f"{name!r} holds {np.asarray(arrays[name]).dtype} values, not numbers"
-        if not np.isfinite(arrays["boxes"]).all():
-            return "non-finite boxes"
-        for name in ("seconds_tracking", "seconds_total"):
-            if name not in arrays or np.shape(arrays[name]) != ():
-                return f"no {name!r} value"
-            # A run's times are what its fps is computed from: a number of seconds, >= 0.
-            if not _real(arrays[name]) or not np.isfinite(arrays[name]) or arrays[name] < 0:
-                return f"{name!r} is {np.asarray(arrays[name]).tolist()!r}, not a number of seconds"
-        return None
+        return tracking_problem(arrays, self.frames(), {"boxes": 4, "states": 6})
 
     def execute(self) -> dict:
         return track_sequence(self.sequence, self.params, seed=self.seed, n_frames=self.n_frames).to_arrays()

@@ -42,7 +42,7 @@ import numpy as np
 from nrmlc.errors import NrmlcError, ParameterError
 from nrmlc.tracker.loop import TrackResult
 from nrmlc.tracker.params import TrackerParams
-from nrmlc.workbench.jobs import CACHE_EPOCH, CachedJob, RunSpec, _count, _real, sequence_identity
+from nrmlc.workbench.jobs import CACHE_EPOCH, CachedJob, RunSpec, _count, sequence_identity, tracking_problem
 
 #: Part of an imported tracker's run key: bumped when :meth:`InitUpdateJob.execute` changes what it
 #: gives the tracker or how it times it (our code version is not in these keys: the user's tracker
@@ -138,9 +138,10 @@ def _resolve(spec: str, search_path=()):
 
 def _make(spec: str, factory, seed: int):
     """The tracker ``factory`` makes for ``seed``, checked to have ``init`` and ``update``."""
-    call = f"{spec.partition(':')[2]}({'seed=' + str(seed) if _accepts_seed(factory) else ''})"
+    seeded = _accepts_seed(factory)
+    call = f"{spec.partition(':')[2]}({'seed=' + str(seed) if seeded else ''})"
     try:
-        tracker = factory(seed=seed) if _accepts_seed(factory) else factory()
+        tracker = factory(seed=seed) if seeded else factory()
     except Exception as exc:
         raise ParameterError(f"{OPTION} {spec!r}: {call} raised {type(exc).__name__}: "
                              f"{' '.join(str(exc).split())}") from exc
@@ -217,7 +218,8 @@ class InitUpdateJob(CachedJob):
     ``init`` and ``update`` only.
 
     ``seconds_tracking`` is the time spent in ``init`` and ``update``, as NRMLC's runs count it
-    (:class:`nrmlc.tracker.loop.TrackResult`: fps is frames after the first over it); ``seconds_total`` is the whole run, with making the tracker and reading frames.
+    (:class:`nrmlc.tracker.loop.TrackResult`: fps is frames after the first over it);
+    ``seconds_total`` is the whole run, with making the tracker and reading frames.
     Its result is a :class:`nrmlc.tracker.loop.TrackResult` without states.
 
     Attributes
@@ -284,19 +286,7 @@ class InitUpdateJob(CachedJob):
 
     def problem(self, arrays: dict) -> str | None:
         """Why ``arrays`` are not a finished run of this job (None: they are)."""
-        n = self.frames()
-        if "boxes" not in arrays:
-            return "no 'boxes' array"
-        shape = np.shape(arrays["boxes"])
-        if shape != (n, 4):
-            return f"'boxes' has shape {shape}, expected ({n}, 4) for {n} frames"
-        if not _real(arrays["boxes"]) or not np.isfinite(arrays["boxes"]).all():
-            return "boxes that are not finite numbers"
-        for name in ("seconds_tracking", "seconds_total"):
-            value = arrays.get(name)
-            if value is None or np.shape(value) != () or not _real(value) or not np.isfinite(value) or value < 0:
-                return f"no {name!r} number of seconds"
-        return None
+        return tracking_problem(arrays, self.frames(), {"boxes": 4})
 
     def result(self, arrays: dict) -> TrackResult:
         boxes = np.asarray(arrays["boxes"], dtype=np.float64)
