@@ -44,6 +44,11 @@ def add_track_command(commands) -> None:
     track.add_argument("--param", action="append", default=[], metavar="NAME=VALUE",
                        help="any other tracker parameter, e.g. --param occlusion_detection=false (repeatable; "
                             "names, defaults and ranges: see `nrmlc params`)")
+    track.add_argument("--tracker", metavar="NAME|MODULE:FACTORY",
+                       help="track with another tracker instead of NRMLC: one of the lineage's (ivt; "
+                            "`nrmlc benchmark --help`) or package.module:factory, as benchmark's --tracker; "
+                            "not with NRMLC's options (--preset, --param, --particles, --coding, --lambda, "
+                            "--beta, --diagnostics)")
     track.add_argument("--threads", type=int, help="threads for numba/OpenBLAS/OpenCV (default: all cores)")
     track.add_argument("--video", metavar="OUT.mp4", help="also write the frames with the tracked box drawn "
                        "(.mp4, .m4v, .mov, .avi or .mkv)")
@@ -105,6 +110,14 @@ def run_track(args: argparse.Namespace) -> int:
             if name in overrides and overrides[name] != value:
                 raise ParameterError(f"{option} {value} and --param {name}={overrides[name]} disagree; give one")
             overrides[name] = value
+    if args.tracker is not None:
+        given = [option for option, value in (("--preset", args.preset != "default"), ("--param", args.param),
+                                              ("--particles", args.particles), ("--coding", args.coding),
+                                              ("--lambda", args.lam), ("--beta", args.beta),
+                                              ("--diagnostics", args.diagnostics)) if value]
+        if given:
+            raise ParameterError(f"--tracker {args.tracker}: {', '.join(given)} belong to NRMLC; "
+                                 f"give them without --tracker")
     params = TrackerParams.preset(args.preset, **overrides)
     if args.frames is not None and args.frames < 1:
         raise ParameterError(f"--frames must be >= 1, got {args.frames}")
@@ -127,6 +140,11 @@ def run_track(args: argparse.Namespace) -> int:
     if args.init_box is not None:
         init_box = np.array(parse_box_line(args.init_box, "--init-box"))
     check_outputs(args, sequence)
+    entry = None
+    if args.tracker is not None:
+        from nrmlc.workbench.trackers import ImportedTracker
+
+        entry = ImportedTracker(args.tracker)
     writer = None
     on_frame = None
     try:
@@ -136,8 +154,11 @@ def run_track(args: argparse.Namespace) -> int:
             # Inside the try: an interrupt right after its temporary file exists still removes it.
             writer = BoxVideoWriter(args.video, sequence)
             on_frame = writer.on_frame
-        result = track_sequence(sequence, params, seed=args.seed, n_frames=args.frames, init_box=init_box,
-                                progress=True, on_frame=on_frame)
+        if entry is None:
+            result = track_sequence(sequence, params, seed=args.seed, n_frames=args.frames, init_box=init_box,
+                                    progress=True, on_frame=on_frame)
+        else:
+            result = _track_other(entry, sequence, args.seed, args.frames, init_box, writer)
         if interrupt_requested.is_set():
             raise KeyboardInterrupt  # a signal whose KeyboardInterrupt a finaliser swallowed
         # All or nothing: a failure while writing one output leaves every earlier file as it was.
@@ -159,3 +180,17 @@ def run_track(args: argparse.Namespace) -> int:
         summary += f", mean overlap {scores.mean_overlap:.3f}, CLE {scores.mean_center_error:.1f} px"
     print(summary, file=sys.stderr)
     return 0
+
+
+def _track_other(entry, sequence, seed: int, n_frames: int | None, init_box, writer):
+    """``entry``'s (:class:`nrmlc.workbench.trackers.ImportedTracker`) run, as a TrackResult without states."""
+    import time
+
+    from nrmlc.tracker.loop import TrackResult
+    from nrmlc.workbench.trackers import track_init_update
+
+    start = time.perf_counter()
+    n = len(sequence) if n_frames is None else min(n_frames, len(sequence))
+    boxes, seconds = track_init_update(entry.spec, sequence, seed, n, init_box=init_box,
+                                       on_box=writer.draw if writer is not None else None)
+    return TrackResult(boxes, np.zeros((n, 0)), {}, seconds, time.perf_counter() - start)

@@ -84,13 +84,17 @@ class BoxVideoWriter:
         self.frames_written = 0
 
     def on_frame(self, index: int, tracker, frame) -> None:
+        """Draw frame ``index`` with NRMLC's box (:func:`nrmlc.tracker.loop.track_sequence`'s hook)."""
+        self.draw(index, tracker.initial_box if index == 0 else tracker.last.box)
+
+    def draw(self, index: int, box) -> None:
+        """Write frame ``index`` with ``box`` (1-based ``x, y, w, h``) and the ground truth drawn."""
         image = self.sequence.color_frame(index).copy()
         boxes = self.sequence.groundtruth
         truth = boxes[index] if boxes is not None and index < len(boxes) else None
         has_truth = truth is not None and bool(np.all(np.isfinite(truth)))
         if has_truth:
             _draw(image, truth, TRUTH_COLOUR)
-        box = tracker.initial_box if index == 0 else tracker.last.box
         _draw(image, box, TRACKER_COLOUR)
         _legend(image, index, has_truth)
         with native_messages():

@@ -502,8 +502,10 @@ def add_benchmark_command(commands) -> None:
                        help="any tracker parameter, e.g. --param n_particles=300 (repeatable)")
     from nrmlc.workbench.trackers import CONTRACT
 
-    bench.add_argument("--tracker", metavar="MODULE:FACTORY",
-                       help="benchmark your own tracker instead of NRMLC: package.module:factory, a callable "
+    bench.add_argument("--tracker", metavar="NAME|MODULE:FACTORY",
+                       help="benchmark another tracker instead of NRMLC: one of the paper's lineage, live "
+                            "(ivt: IVT as the OTB benchmark ran it; nrmlc/lineage), or your own, "
+                            "package.module:factory, a callable "
                             f"(called with seed=SEED if it has a seed parameter) returning {CONTRACT}; "
                             "the module must be importable (PYTHONPATH); not with --preset or --param")
     bench.add_argument("--max-frames", type=int, metavar="N", help="track only the first N frames of each sequence")

@@ -153,12 +153,15 @@ def _make(spec: str, factory, seed: int):
 
 
 def _source_digest(spec: str, module, factory) -> str:
-    """A hash of the file(s) defining ``factory``: the module named and the one the factory is from."""
+    """A hash of the file(s) defining ``factory``: the module named and the one the factory is from;
+    for the lineage's trackers (:mod:`nrmlc.lineage`), every file of that package, which they share."""
     files = set()
     for owner in (module, inspect.getmodule(factory)):
         path = getattr(owner, "__file__", None)
         if path:
             files.add(str(Path(path).resolve()))
+        if getattr(owner, "__name__", "").startswith(LINEAGE_PACKAGE + ".") and path:
+            files.update(str(p.resolve()) for p in Path(path).parent.glob("*.py"))
     if not files:
         raise ParameterError(f"{OPTION} {spec!r}: the module has no source file to key its runs on")
     digest = hashlib.sha256()
@@ -170,8 +173,22 @@ def _source_digest(spec: str, module, factory) -> str:
     return digest.hexdigest()[:24]
 
 
+#: The package of the built-in lineage trackers (``--tracker ivt``).
+LINEAGE_PACKAGE = "nrmlc.lineage"
+
+
+def lineage_name(spec) -> str | None:
+    """The lineage tracker ``spec`` names (``"ivt"``, any case), or None when it names none."""
+    from nrmlc.lineage import TRACKERS
+
+    if isinstance(spec, str) and ":" not in spec and spec.strip().lower() in TRACKERS:
+        return spec.strip().lower()
+    return None
+
+
 class ImportedTracker:
-    """A tracker of the user's: ``"package.module:factory"`` (module docstring).
+    """A tracker of the user's, ``"package.module:factory"`` (module docstring), or one of the
+    lineage's by its short name (``"ivt"``: :data:`nrmlc.lineage.TRACKERS`).
 
     Checked at once, in one :class:`ParameterError` line naming ``--tracker``: the module is
     imported, the factory found and called once (with ``seed=0`` when it takes a seed), and what
@@ -179,10 +196,15 @@ class ImportedTracker:
     """
 
     def __init__(self, spec: str) -> None:
+        short = lineage_name(spec)
+        if short is not None:
+            from nrmlc.lineage import TRACKERS
+
+            spec = TRACKERS[short]
         module, factory = _resolve(spec)
         _make(spec, factory, 0)
         self.spec = spec.strip()
-        self.name = self.spec
+        self.name = short.upper() if short is not None else self.spec
         self.source = _source_digest(spec, module, factory)
         # Where a worker process looks for the module (it may have been found through a sys.path
         # entry this process added).
@@ -210,6 +232,53 @@ def check_box(box, spec: str, sequence, index: int) -> np.ndarray:
         raise TrackerFailed(f"{OPTION} {spec}: update() on frame {index + 1} of {sequence.name} returned {shown}, "
                             f"not a box (4 finite numbers x, y, w, h)")
     return array.astype(np.float64)
+
+
+def track_init_update(spec: str, sequence, seed: int, n_frames: int, init_box=None, on_box=None,
+                      search_path=()) -> tuple[np.ndarray, float]:
+    """Track ``sequence``'s first ``n_frames`` frames with the tracker ``spec``'s factory makes.
+
+    Parameters
+    ----------
+    spec : str
+        ``package.module:factory``.
+    sequence : nrmlc.data.Sequence
+    seed : int
+    n_frames : int
+    init_box : (4,) array_like, optional
+        The first box (default: the sequence's).
+    on_box : callable(index, box), optional
+        Called with each frame's box as it is known (for drawing).
+    search_path : tuple of str
+        ``sys.path`` entries to add first (:func:`_resolve`).
+
+    Returns
+    -------
+    boxes : (n_frames, 4) float64
+        1-based ``x, y, w, h``; row 0 is the first box.
+    seconds : float
+        Time spent in ``init`` and ``update``.
+    """
+    _, factory = _resolve(spec, search_path)
+    tracker = _make(spec, factory, seed)
+    boxes = np.empty((n_frames, 4), dtype=np.float64)
+    boxes[0] = sequence.init_box if init_box is None else init_box
+    tracking = 0.0
+    for index in range(n_frames):
+        frame = sequence.color_frame(index)
+        step = "init()" if index == 0 else "update()"
+        tick = time.perf_counter()
+        try:
+            output = tracker.init(frame, boxes[0].copy()) if index == 0 else tracker.update(frame)
+        except Exception as exc:
+            raise TrackerFailed(f"{OPTION} {spec}: {step} on frame {index + 1} of {sequence.name} "
+                                f"raised {type(exc).__name__}: {' '.join(str(exc).split())}") from exc
+        tracking += time.perf_counter() - tick
+        if index > 0:
+            boxes[index] = check_box(output, spec, sequence, index)
+        if on_box is not None:
+            on_box(index, boxes[index])
+    return boxes, tracking
 
 
 @dataclass(frozen=True)
@@ -262,25 +331,8 @@ class InitUpdateJob(CachedJob):
 
     def execute(self) -> dict:
         start = time.perf_counter()
-        _, factory = _resolve(self.tracker, self.search_path)
-        tracker = _make(self.tracker, factory, self.seed)
-        sequence = self.sequence
-        n = self.frames()
-        boxes = np.empty((n, 4), dtype=np.float64)
-        boxes[0] = sequence.init_box
-        tracking = 0.0
-        for index in range(n):
-            frame = sequence.color_frame(index)
-            step = "init()" if index == 0 else "update()"
-            tick = time.perf_counter()
-            try:
-                output = tracker.init(frame, boxes[0].copy()) if index == 0 else tracker.update(frame)
-            except Exception as exc:
-                raise TrackerFailed(f"{OPTION} {self.tracker}: {step} on frame {index + 1} of {sequence.name} "
-                                    f"raised {type(exc).__name__}: {' '.join(str(exc).split())}") from exc
-            tracking += time.perf_counter() - tick
-            if index > 0:
-                boxes[index] = check_box(output, self.tracker, sequence, index)
+        boxes, tracking = track_init_update(self.tracker, self.sequence, self.seed, self.frames(),
+                                            search_path=self.search_path)
         return {"boxes": boxes, "seconds_tracking": np.float64(tracking),
                 "seconds_total": np.float64(time.perf_counter() - start)}
 

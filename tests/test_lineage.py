@@ -1,0 +1,219 @@
+"""The lineage's shared parts (affine states, the warp, incremental PCA), IVT, and how the
+workbench and the command line reach them."""
+from __future__ import annotations
+
+import numba
+import numpy as np
+import pytest
+
+from nrmlc.data import synthetic_suite
+from nrmlc.errors import ParameterError
+from nrmlc.lineage import TRACKERS
+from nrmlc.lineage.affine import (box_to_geom, geom_to_matrix, matrix_to_box, matrix_to_geom, warp_patches,
+                                  warp_patches_reference)
+from nrmlc.lineage.ivt import IVTParams, IVTTracker
+from nrmlc.lineage.subspace import Subspace
+from nrmlc.workbench.metrics import evaluate
+from nrmlc.workbench.trackers import ImportedTracker, track_init_update
+
+
+def random_geoms(rng, n):
+    return np.column_stack([rng.uniform(0, 100, n), rng.uniform(0, 80, n), rng.uniform(0.3, 3, n),
+                            rng.uniform(-1.2, 1.2, n), rng.uniform(0.4, 2.5, n), rng.uniform(-0.4, 0.4, n)])
+
+
+def test_matrix_of_a_rotation_without_skew():
+    s, th, r = 1.7, 0.3, 0.8
+    q = geom_to_matrix([5.0, 6.0, s, th, r, 0.0])
+    np.testing.assert_allclose(q, [5, 6, s * np.cos(th), -s * r * np.sin(th), s * np.sin(th), s * r * np.cos(th)])
+
+
+def test_geometric_and_matrix_forms_round_trip():
+    rng = np.random.default_rng(1)
+    for geom in random_geoms(rng, 200):
+        matrix = geom_to_matrix(geom)
+        np.testing.assert_allclose(geom_to_matrix(matrix_to_geom(matrix)), matrix, atol=1e-9)
+
+
+@pytest.mark.parametrize("box", [(10, 20, 32, 40), (3, 4, 17, 9), (100, 50, 64, 64)])
+def test_a_box_survives_state_and_back(box):
+    # The OTB toolkit's corners of the state of an integer box are the box (IVT rounds the centre,
+    # which for an odd size moves it by half a pixel: the box shifts by at most one).
+    geom = box_to_geom(box, 32, round_centre=False)
+    np.testing.assert_allclose(matrix_to_box(geom_to_matrix(geom), (32, 32))[0], box, atol=1e-9)
+    rounded = matrix_to_box(geom_to_matrix(box_to_geom(box, 32, round_centre=True)), (32, 32))[0]
+    assert np.abs(rounded - np.asarray(box)).max() <= 1
+
+
+def test_warp_matches_its_reference_inside_across_and_outside_the_frame():
+    rng = np.random.default_rng(2)
+    frame = rng.random((40, 50))
+    geoms = random_geoms(rng, 60)
+    geoms[:20, :2] = rng.uniform(-20, 70, (20, 2))   # partly or wholly off the frame
+    geoms[20:30, :2] = rng.uniform(-1, 1, (10, 2))  # coordinates in (-1, 0): C's (int) truncates towards 0
+    matrices = np.ascontiguousarray(geom_to_matrix(geoms))
+    got = warp_patches(frame, matrices, (12, 16))
+    np.testing.assert_allclose(got, warp_patches_reference(frame, matrices, (12, 16)), rtol=1e-12, atol=1e-12)
+    assert (got[:20] == 0).any() and (got[:20] != 0).any()
+
+
+def test_an_unscaled_warp_copies_pixels():
+    frame = np.arange(30 * 40, dtype=np.float64).reshape(30, 40)
+    patch = warp_patches(frame, np.array([[20.0, 15.0, 1, 0, 0, 1]]), (8, 6))[0]
+    # template point (u, v) = (col + 1 - 3, row + 1 - 4) -> 1-based (20 + u, 15 + v) -> 0-based minus one
+    np.testing.assert_array_equal(patch, frame[15 - 4: 15 + 4, 20 - 3: 20 + 3])
+
+
+def test_warp_is_the_same_for_any_thread_count():
+    rng = np.random.default_rng(3)
+    frame = rng.random((60, 80))
+    matrices = np.ascontiguousarray(geom_to_matrix(random_geoms(rng, 101)))
+    before = numba.get_num_threads()
+    try:
+        numba.set_num_threads(1)
+        one = warp_patches(frame, matrices, (32, 32))
+        numba.set_num_threads(numba.config.NUMBA_NUM_THREADS)
+        many = warp_patches(frame, matrices, (32, 32))
+    finally:
+        numba.set_num_threads(before)
+    np.testing.assert_array_equal(one, many)
+
+
+@pytest.mark.parametrize("matrices, message", [(np.zeros((3, 5)), "6 columns"), (np.full((2, 6), np.nan), "finite"),
+                                               (np.zeros((2, 6), dtype=np.float32), "dtype")])
+def test_warp_refuses_bad_states(matrices, message):
+    with pytest.raises(ParameterError, match=message):
+        warp_patches(np.zeros((10, 10)), matrices, (4, 4))
+
+
+def test_incremental_pca_without_forgetting_is_batch_pca():
+    # sklm.m with ff = 1 and nothing cut is exact: the mean and singular values of all batches
+    # together (Levy and Lindenbaum 2000; Ross et al. 2008, Sec. 3.1).
+    rng = np.random.default_rng(4)
+    batches = [rng.random((50, 5)) @ np.diag([3, 2, 1, 1, 0.5]) for _ in range(4)]
+    subspace = Subspace(np.zeros(50))
+    for batch in batches:
+        subspace.update(batch, forgetting=1.0)
+    data = np.hstack(batches)
+    np.testing.assert_allclose(subspace.mean, data.mean(axis=1), atol=1e-12)
+    expected = np.linalg.svd(data - data.mean(axis=1, keepdims=True), compute_uv=False)
+    np.testing.assert_allclose(subspace.singular_values, expected[: subspace.singular_values.size], rtol=1e-9)
+    np.testing.assert_allclose(subspace.basis.T @ subspace.basis, np.eye(subspace.basis.shape[1]), atol=1e-10)
+
+
+def test_forgetting_weights_the_mean_towards_new_batches():
+    subspace = Subspace(np.zeros(3))
+    subspace.update(np.zeros((3, 5)) + [[1], [1], [1]], forgetting=0.5)
+    subspace.update(np.zeros((3, 5)) + [[3], [3], [3]], forgetting=0.5)
+    # (ff n0 mu0 + n mu1) / (n + ff n0) = (0.5*5*1 + 5*3) / 7.5
+    np.testing.assert_allclose(subspace.mean, (2.5 + 15) / 7.5)
+    assert subspace.n_samples == 7.5
+
+
+def test_residuals_are_distances_to_the_affine_subspace():
+    rng = np.random.default_rng(5)
+    subspace = Subspace(np.zeros(20))
+    subspace.update(rng.random((20, 6)))
+    subspace.truncate(3)
+    patches = rng.random((7, 20))
+    centred = patches - subspace.mean
+    projected = centred @ subspace.basis @ subspace.basis.T
+    np.testing.assert_allclose(subspace.residuals(patches), ((centred - projected) ** 2).sum(axis=1))
+
+
+@pytest.fixture(scope="module")
+def sequence():
+    return synthetic_suite(n_frames=40, size=(120, 160), n_sequences=1, seed=3)[0]
+
+
+def run_ivt(sequence, seed):
+    tracker = IVTTracker(seed=seed)
+    tracker.init(sequence.color_frame(0), sequence.init_box)
+    return np.array([sequence.init_box] + [tracker.update(sequence.color_frame(i)) for i in range(1, len(sequence))])
+
+
+def test_ivt_follows_a_moving_target_that_a_still_box_loses(sequence):
+    boxes = run_ivt(sequence, 0)
+    still = np.repeat(sequence.init_box[None], len(sequence), axis=0)
+    tracked = evaluate(boxes, sequence.groundtruth).mean_overlap
+    assert tracked > 0.6
+    assert tracked > evaluate(still, sequence.groundtruth).mean_overlap + 0.2
+
+
+def test_ivt_is_reproducible_by_seed(sequence):
+    np.testing.assert_array_equal(run_ivt(sequence, 7), run_ivt(sequence, 7))
+    assert not np.array_equal(run_ivt(sequence, 7), run_ivt(sequence, 8))
+
+
+@pytest.mark.parametrize("field, value", [("n_particles", 0), ("condenssig", 0.0), ("forgetting", 1.5),
+                                          ("batch_size", 0), ("affine_sigma", (1, 2, 3))])
+def test_ivt_parameters_out_of_range_are_refused(field, value):
+    with pytest.raises(ParameterError, match=f"IVTParams.{field}"):
+        IVTParams(**{field: value})
+
+
+def test_lineage_trackers_are_reached_by_short_name(sequence):
+    entry = ImportedTracker("IVT")
+    assert entry.name == "IVT" and entry.spec == TRACKERS["ivt"]
+    boxes, seconds = track_init_update(entry.spec, sequence, 7, 12)
+    np.testing.assert_array_equal(boxes, run_ivt(sequence, 7)[:12])
+    assert seconds > 0
+
+
+def test_a_lineage_runs_key_covers_the_files_it_shares(sequence, tmp_path, monkeypatch):
+    from nrmlc.workbench import trackers
+
+    first = ImportedTracker("ivt").source
+    original = trackers.Path.read_bytes
+
+    def edited(path):
+        data = original(path)
+        return data + b"\n# edited\n" if path.name == "subspace.py" else data
+
+    monkeypatch.setattr(trackers.Path, "read_bytes", edited)
+    assert ImportedTracker("ivt").source != first
+
+
+@pytest.fixture(scope="module")
+def sequence_folder(tmp_path_factory, sequence):
+    from nrmlc.data import write_otb_sequence
+
+    root = tmp_path_factory.mktemp("lineage-data")
+    write_otb_sequence(synthetic_suite(n_frames=10, size=(120, 160), n_sequences=1, seed=3)[0], root / "synth-01")
+    return root
+
+
+def test_track_with_a_lineage_tracker_writes_its_boxes(sequence_folder, tmp_path, capsys):
+    from nrmlc.cli import main
+    from nrmlc.data import open_sequence, read_box_file
+
+    code = main(["track", str(sequence_folder / "synth-01"), "--out", str(tmp_path / "ivt.txt"), "--tracker", "ivt",
+                 "--seed", "4"])
+    assert code == 0
+    assert "mean overlap" in capsys.readouterr().err
+    sequence = open_sequence(sequence_folder / "synth-01")
+    np.testing.assert_allclose(read_box_file(tmp_path / "ivt.txt"), run_ivt(sequence, 4), atol=1e-3)
+
+
+@pytest.mark.parametrize("extra", [["--param", "lam=1"], ["--particles", "10"], ["--preset", "paper"]])
+def test_track_refuses_nrmlc_options_with_another_tracker(sequence_folder, tmp_path, capsys, extra):
+    from nrmlc.cli import main
+
+    code = main(["track", str(sequence_folder / "synth-01"), "--out", str(tmp_path / "x.txt"), "--tracker", "ivt",
+                 *extra])
+    err = capsys.readouterr().err.strip()
+    assert code == 2 and len(err.splitlines()) == 1 and extra[0] in err
+    assert not (tmp_path / "x.txt").exists()
+
+
+def test_benchmark_runs_a_lineage_tracker_once_per_seed(sequence_folder, tmp_path, capsys):
+    from nrmlc.cli import main
+
+    argv = ["benchmark", str(sequence_folder), "--out", str(tmp_path / "IVT"), "--tracker", "ivt", "--seeds", "0-1",
+            "--cache", str(tmp_path / "cache"), "--jobs", "1"]
+    assert main(argv) == 0
+    assert len(list((tmp_path / "cache" / "imported").glob("*.npz"))) == 2
+    first = (tmp_path / "IVT" / "synth-01.txt").read_text()
+    assert main([*argv[:3], str(tmp_path / "Again"), *argv[4:]]) == 0  # from the cache
+    assert (tmp_path / "Again" / "synth-01.txt").read_text() == first
+    assert len(list((tmp_path / "cache" / "imported").glob("*.npz"))) == 2
