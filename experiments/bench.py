@@ -528,6 +528,10 @@ def _nrmlc_fps(sequence, frames, params) -> float:
     return (len(frames) - 1) / (time.perf_counter() - start)
 
 
+#: How the end-to-end rows name the lineage's trackers ("IVT (lineage, live)").
+LINEAGE_SUFFIX = "(lineage, live)"
+
+
 def _mil_fps(sequence, color_frames) -> float:
     """OpenCV TrackerMIL on the same frames (BGR, preloaded), init included."""
     import cv2
@@ -537,6 +541,21 @@ def _mil_fps(sequence, color_frames) -> float:
     tracker = cv2.TrackerMIL.create()
     start = time.perf_counter()
     tracker.init(color_frames[0], box)
+    for frame in color_frames[1:]:
+        tracker.update(frame)
+    return (len(color_frames) - 1) / (time.perf_counter() - start)
+
+
+def _lineage_fps(sequence, color_frames, name: str) -> float:
+    """A lineage tracker (:data:`nrmlc.lineage.TRACKERS`) on the same frames (BGR, preloaded), init included."""
+    import importlib
+
+    from nrmlc.lineage import TRACKERS
+
+    module, _, factory = TRACKERS[name].partition(":")
+    tracker = getattr(importlib.import_module(module), factory)(seed=0)
+    start = time.perf_counter()
+    tracker.init(color_frames[0], sequence.init_box)
     for frame in color_frames[1:]:
         tracker.update(frame)
     return (len(color_frames) - 1) / (time.perf_counter() - start)
@@ -566,11 +585,18 @@ def bench_end_to_end(sequence, n_frames: int | None, rounds: int) -> list[dict]:
     variants[f"NRMLC second_expert={expert}"] = default.replace(second_expert=expert)
     samples = {name: [] for name in variants}
     samples["OpenCV TrackerMIL"] = []
+    from nrmlc.lineage import TRACKERS
+
+    for name in TRACKERS:
+        samples[f"{name.upper()} {LINEAGE_SUFFIX}"] = []
+        _lineage_fps(sequence, color_frames[:3], name)  # loads its compiled kernels
     for index in range(rounds):
         wait_quiet(f"end to end {sequence.name} round {index + 1}")
         for name, params in variants.items():
             samples[name].append(_nrmlc_fps(sequence, frames, params))
         samples["OpenCV TrackerMIL"].append(_mil_fps(sequence, color_frames))
+        for name in TRACKERS:
+            samples[f"{name.upper()} {LINEAGE_SUFFIX}"].append(_lineage_fps(sequence, color_frames, name))
     decoded = track_sequence(sequence, default, seed=0, n_frames=total)
     rows = []
     for tracker, runs in samples.items():
@@ -778,6 +804,11 @@ def _summary(result: dict) -> list[str]:
             met = fps >= TARGET_FPS and ratio >= TARGET_MIL_RATIO
             lines.append(f"Car4 speed target (>= {TARGET_FPS:.0f} fps and >= {TARGET_MIL_RATIO:.0f}x "
                          f"TrackerMIL, same run): {'met' if met else 'NOT met'} ({fps:.1f} fps, {ratio:.1f}x).")
+        for (other_sequence, other_tracker), other in by_name.items():
+            if other_sequence == sequence and other_tracker.endswith(LINEAGE_SUFFIX) and mil:
+                lines.append(f"{sequence}: {other_tracker} runs at {other['fps_tracking']:.1f} fps: "
+                             + compare(other_tracker.split()[0], other["fps_tracking"], "TrackerMIL",
+                                       mil["fps_tracking"]) + ".")
         for mode in MODES:
             other = by_name.get((sequence, f"NRMLC {mode}"))
             if other and mode != default_mode:
@@ -861,6 +892,10 @@ def _markdown(result: dict) -> str:
         tracker = f"{row['tracker']} (default parameters)" if row.get("default") else row["tracker"]
         lines.append(f"| {row['sequence']} | {tracker} | {row['frames']} | {row['fps_tracking']:.1f} | "
                      f"{row['fps_runs']} | {total} |")
+    if result.get("matlab_fps"):
+        lines += ["", "The OTB benchmark's files record the MATLAB originals on Car4 at "
+                  + ", ".join(f"{fps:.1f} fps ({name})" for name, fps in result["matlab_fps"].items())
+                  + ", on the benchmark's machine (2013), not this one."]
     if result.get("threads"):
         lines += ["", "## Thread set-ups (fresh process each, median of interleaved runs)", "",
                   "| set-up | numba threads | fps | CPU ms / frame | runs (fps) |", "|---|---:|---:|---:|---|"]
@@ -904,7 +939,7 @@ def run(data: Path | None, out_dir: Path, n_threads: int | None = None, counts=P
         reference_repeats: int = 2, synthetic_frames: int = 120, real_frames: int | None = REAL_FRAMES,
         e2e_rounds: int = 3, startup: bool = True, reference_subset: dict | None = None,
         thread_study: bool = True, stage_frames: int = 60, grid: bool = True, dask: str | None = None,
-        wait_quiet_s: float = WAIT_QUIET_S, probe_cores: bool = True) -> dict:
+        wait_quiet_s: float = WAIT_QUIET_S, probe_cores: bool = True, otb_results: Path | None = None) -> dict:
     from nrmlc import io
     from nrmlc.data import open_sequence, synthetic_suite
 
@@ -933,6 +968,7 @@ def run(data: Path | None, out_dir: Path, n_threads: int | None = None, counts=P
     result["end_to_end"] = bench_end_to_end(synthetic, None, e2e_rounds)
     if car4 is not None:
         result["end_to_end"] += bench_end_to_end(car4, real_frames, e2e_rounds)
+    result["matlab_fps"] = matlab_fps(car4, otb_results) if car4 is not None else {}
     result["threads"] = None
     if thread_study:
         print("thread set-ups:", flush=True)
@@ -962,6 +998,27 @@ def run(data: Path | None, out_dir: Path, n_threads: int | None = None, counts=P
     print(markdown)
     print(f"wrote {out_dir / 'bench.md'} and bench.json", flush=True)
     return result
+
+
+#: Where ``make more-sequences`` lays out the OTB benchmark's result files (their fps: the MATLAB originals').
+DEFAULT_OTB_RESULTS = REPO_ROOT.parent / "devdata" / "otb_results"
+
+
+def matlab_fps(sequence, otb_results: Path | None) -> dict:
+    """The fps the OTB benchmark's files record for the lineage's MATLAB originals on ``sequence``
+    (their 2013 machine, not this one: context, not a ratio); {} without the files."""
+    from nrmlc.lineage import TRACKERS
+    from nrmlc.workbench.otb_results import has_otb_results, otb_result_boxes
+
+    folder = DEFAULT_OTB_RESULTS if otb_results is None else Path(otb_results)
+    if not folder.is_dir() or not has_otb_results(folder):
+        return {}
+    found = {}
+    for name in TRACKERS:
+        boxes, fps, _ = otb_result_boxes(folder, name.upper(), sequence)
+        if boxes is not None and fps is not None:
+            found[name.upper()] = float(fps)
+    return found
 
 
 def default_bench_data() -> Path | None:
