@@ -12,7 +12,7 @@ Writes ``<out>/lineage_fidelity.csv`` (one row per tracker and sequence), ``.jso
 with the means) and ``.png`` (live against file, per sequence).
 
     python -m experiments.lineage.fidelity --data ../shared/data/sequences ../devdata/sequences \\
-        --otb-results ../devdata/otb_results --out figures
+        --otb-results ../devdata/otb_results --out figures/lineage
 """
 from __future__ import annotations
 
@@ -81,7 +81,6 @@ def run(data_roots, otb_folder, out, trackers=("ivt", "asla"), seeds=SEEDS, cach
     summary = {}
     for tracker in sorted({row["tracker"] for row in rows}):
         mine = [row for row in rows if row["tracker"] == tracker]
-        # the mean over sequences, per seed: its spread is the seeds' spread of the mean
         # the mean over sequences for each seed: their spread is the seeds' spread of the mean
         per_seed = np.mean([row.pop("_overlaps") for row in mine], axis=0)
         summary[tracker] = {
