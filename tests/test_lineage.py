@@ -2,6 +2,8 @@
 workbench and the command line reach them."""
 from __future__ import annotations
 
+from pathlib import Path
+
 import numba
 import numpy as np
 import pytest
@@ -172,6 +174,26 @@ def test_a_lineage_runs_key_covers_the_files_it_shares(sequence, tmp_path, monke
 
     monkeypatch.setattr(trackers.Path, "read_bytes", edited)
     assert ImportedTracker("ivt").source != first
+
+
+def test_a_lineage_runs_key_leaves_out_the_files_it_does_not_import(monkeypatch):
+    from nrmlc.workbench import trackers
+
+    before = {name: ImportedTracker(name).source for name in ("ivt", "asla")}
+    original = trackers.Path.read_bytes
+
+    def edited(path):
+        data = original(path)
+        return data + b"\n# edited\n" if path.name == "lasso.py" else data
+
+    monkeypatch.setattr(trackers.Path, "read_bytes", edited)
+    assert ImportedTracker("ivt").source == before["ivt"]  # IVT does not use the lasso
+    assert ImportedTracker("asla").source != before["asla"]
+    files = {Path(p).relative_to(Path(trackers.__file__).parents[1]).as_posix()
+             for p in trackers.nrmlc_imports("nrmlc.lineage.asla")}
+    assert {"lineage/asla.py", "lineage/affine.py", "lineage/lasso.py", "lineage/subspace.py",
+            "kernels/checks.py", "config.py"} <= files
+    assert "lineage/ivt.py" not in files and "lineage/__init__.py" not in files
 
 
 @pytest.fixture(scope="module")

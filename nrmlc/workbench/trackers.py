@@ -24,7 +24,8 @@ Two entries:
   and every box ``update`` returns are 1-based OTB boxes. Its runs are :class:`InitUpdateJob`\\ s,
   stored in the run cache's ``imported/`` folder and keyed by the sequence's content, the factory's
   name, the bytes of the file(s) defining it, the seed and the frame cap: editing that file
-  recomputes its runs; editing another module it imports does not (use another ``--cache``).
+  recomputes its runs; editing another module it imports does not (use another ``--cache``),
+  except for the lineage's trackers, whose keys cover every ``nrmlc`` module they import.
 """
 from __future__ import annotations
 
@@ -154,14 +155,17 @@ def _make(spec: str, factory, seed: int):
 
 def _source_digest(spec: str, module, factory) -> str:
     """A hash of the file(s) defining ``factory``: the module named and the one the factory is from;
-    for the lineage's trackers (:mod:`nrmlc.lineage`), every file of that package, which they share."""
+    for the lineage's trackers (:mod:`nrmlc.lineage`), also every module of ``nrmlc`` they import,
+    directly or not (:func:`nrmlc_imports`), so that editing a shared part recomputes their runs and
+    adding another tracker does not."""
     files = set()
     for owner in (module, inspect.getmodule(factory)):
         path = getattr(owner, "__file__", None)
         if path:
             files.add(str(Path(path).resolve()))
-        if getattr(owner, "__name__", "").startswith(LINEAGE_PACKAGE + ".") and path:
-            files.update(str(p.resolve()) for p in Path(path).parent.glob("*.py"))
+        name = getattr(owner, "__name__", "")
+        if name.startswith(LINEAGE_PACKAGE + ".") and path:
+            files.update(nrmlc_imports(name))
     if not files:
         raise ParameterError(f"{OPTION} {spec!r}: the module has no source file to key its runs on")
     digest = hashlib.sha256()
@@ -171,6 +175,36 @@ def _source_digest(spec: str, module, factory) -> str:
         except OSError as exc:
             raise ParameterError(f"{OPTION} {spec!r}: cannot read {path} to key its runs on ({exc})") from None
     return digest.hexdigest()[:24]
+
+
+def nrmlc_imports(module_name: str) -> set[str]:
+    """The source files of ``module_name`` and of every ``nrmlc`` module it imports, directly or
+    through other ``nrmlc`` modules (read from their source, imports inside functions included)."""
+    import ast
+    import importlib.util
+
+    def origin(name):
+        try:
+            found = importlib.util.find_spec(name)
+        except (ImportError, ValueError):
+            return None
+        return found.origin if found is not None and found.origin and found.origin.endswith(".py") else None
+
+    files, pending, seen = set(), [module_name], set()
+    while pending:
+        name = pending.pop()
+        path = origin(name) if name not in seen else None
+        seen.add(name)
+        if path is None:
+            continue
+        files.add(str(Path(path).resolve()))
+        for node in ast.walk(ast.parse(Path(path).read_text(encoding="utf-8"))):
+            if isinstance(node, ast.Import):
+                pending += [alias.name for alias in node.names if alias.name.split(".")[0] == "nrmlc"]
+            elif isinstance(node, ast.ImportFrom) and node.level == 0 and (node.module or "").split(".")[0] == "nrmlc":
+                # ``from package import name``: the package, and ``name`` when it is a module of it
+                pending += [node.module] + [f"{node.module}.{alias.name}" for alias in node.names]
+    return files
 
 
 #: The package of the built-in lineage trackers (``--tracker ivt``).
