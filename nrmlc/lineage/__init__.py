@@ -11,4 +11,5 @@ from __future__ import annotations
 TRACKERS = {
     "ivt": "nrmlc.lineage.ivt:IVTTracker",
     "asla": "nrmlc.lineage.asla:ASLATracker",
+    "l1apg": "nrmlc.lineage.l1apg:L1APGTracker",
 }
