@@ -4,8 +4,8 @@ and the one shape every experiment script has.
 Every script in :data:`experiments.run_all.SCRIPTS` defines
 
 - ``STEM``: the stem of its outputs;
-- ``runs(context)``: every job it reads (tracking runs, live OpenCV runs,
-  recorded internals), so that ``run_all`` computes the whole grid in one pool;
+- ``runs(context)``: every job it reads (tracking runs, live peer runs of
+  OpenCV and the lineage, recorded internals), so that ``run_all`` computes the whole grid in one pool;
 - ``collect(context) -> data``: the numbers, from the cached jobs;
 - ``plot(data, path)``: the figure ``<STEM>.png``;
 - ``report(context, data) -> section``: writes ``<STEM>.csv/.json`` and returns

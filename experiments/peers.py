@@ -1,6 +1,6 @@
-"""Peer trackers: OpenCV trackers run live, and the shipped per-frame peer results.
+"""Peer trackers: OpenCV trackers and the paper's lineage run live, and the shipped per-frame peer results.
 
-Two sources of peer numbers, both scored with :mod:`nrmlc.workbench.metrics` against
+Three sources of peer numbers, all scored with :mod:`nrmlc.workbench.metrics` against
 *our* ground truth, exactly like NRMLC:
 
 1. **Live OpenCV trackers** (:func:`live_trackers`): ``cv2.TrackerMIL`` always
@@ -25,6 +25,9 @@ Two sources of peer numbers, both scored with :mod:`nrmlc.workbench.metrics` aga
    Occlusion1 (898 frames), and the pack Car4 has 659 lines like our OTB Car4
    but is at twice the resolution. Every skipped file is reported with the
    reason.
+3. **The lineage, live** (:data:`LINEAGE_LIVE`): the trackers of :mod:`nrmlc.lineage` (IVT,
+   ASLA) as the OTB benchmark's MATLAB runs them, through the run cache as ``nrmlc benchmark
+   --tracker ivt`` runs them, one run per seed of the context (they are random, like NRMLC).
 """
 from __future__ import annotations
 
@@ -56,6 +59,11 @@ LIVE_CANDIDATES = ("MIL", "KCF", "CSRT")
 #: mean overlap there, 0.353 with the threshold 0 (measured 2026-12-01;
 #: docs/findings/opencv-kcf-csrt.md).
 LIVE_PARAMETERS = {"KCF": {"detect_thresh": 0.0}}
+
+#: The lineage's live trackers in the tables, by short name (:data:`nrmlc.lineage.TRACKERS`), in
+#: column order: those whose agreement with the benchmark's own files has been measured
+#: (docs/research/lineage-fidelity.md).
+LINEAGE_LIVE = ("ivt", "asla")
 
 #: Shipped result folders, and the subfolders holding other versions of sequences.
 SHIPPED_TRACKERS = ("L1", "MIL", "IVT", "ASLA", "KCF")
@@ -241,6 +249,29 @@ def live_results(context, sequences=None) -> dict:
     for spec, result in zip(specs, results):
         table.setdefault(spec.tracker, {})[spec.sequence.name] = result
     return table
+
+
+def lineage_label(name: str) -> str:
+    """Column name of a live lineage tracker (``"ivt"`` -> ``"IVT (live)"``)."""
+    return f"{name.upper()} (live)"
+
+
+def lineage_specs(context, sequences=None) -> list:
+    """One run per (lineage tracker of :data:`LINEAGE_LIVE`, sequence, seed of the context)."""
+    from nrmlc.workbench.trackers import ImportedTracker
+
+    sequences = context.sequences() if sequences is None else sequences
+    entries = [ImportedTracker(name) for name in LINEAGE_LIVE]
+    return [entry.job(s, seed, context.max_frames) for entry in entries for s in sequences for seed in context.seeds]
+
+
+def lineage_results(context, sequences=None) -> dict:
+    """{column label: {sequence name: [TrackResult of each seed]}} for the live lineage (cached)."""
+    sequences = context.sequences() if sequences is None else sequences
+    specs = lineage_specs(context, sequences)
+    results = iter(cache_for(context).run(specs, executor=context.executor, jobs=context.jobs))
+    return {lineage_label(name): {s.name: [next(results) for _ in context.seeds] for s in sequences}
+            for name in LINEAGE_LIVE}
 
 
 # --------------------------------------------------------------- shipped files

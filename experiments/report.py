@@ -56,7 +56,7 @@ def header(context, seconds: float | None = None, grid: dict | None = None) -> s
     if grid:
         lines.append(f"- Grid: {grid.get('runs', 0)} NRMLC runs, {grid.get('frames', 0)} frames "
                      f"({grid.get('missing_frames', 0)} computed in this invocation)"
-                     + (f"; {grid['peer_runs']} live OpenCV runs" if grid.get("peer_runs") else ""))
+                     + (f"; {grid['peer_runs']} live peer runs (OpenCV, the lineage)" if grid.get("peer_runs") else ""))
     if seconds is not None:
         lines.append(f"- Wall time of this invocation: {seconds / 60:.1f} min")
     return "\n".join(lines)

@@ -13,7 +13,7 @@ Steps:
 
 1. build the :class:`~experiments.grid.Context` (data, seeds, run cache);
 2. collect the jobs of every script (``runs(context)``: tracking runs, live
-   OpenCV runs, recorded internals), print the size of the grid per script and
+   peer runs of OpenCV and the lineage, recorded internals), print the size of the grid per script and
    an estimate of its time from a speed measured on this machine just then
    (:func:`measure_speed`; ``--dry-run`` stops here), and compute the missing ones in one pool of
    warmed-up workers (cached runs are skipped, so a rerun or an interrupted
@@ -64,6 +64,9 @@ SPEED_FRAMES = 40
 #: Work of one frame of OpenCV's MIL in 600-particle NRMLC frames: it ran at about 15 frames/s
 #: per worker where NRMLC ran at about 95.
 PEER_FRAME_COST = 95.0 / 15.0
+#: The same for the lineage's live trackers (by factory): CPU time per frame on Car4, one thread
+#: (IVT about 15 ms, ASLA about 65 ms), over the 600-particle NRMLC frame's (about 17 ms).
+LINEAGE_FRAME_COST = {"nrmlc.lineage.ivt:IVTTracker": 15.0 / 17.0, "nrmlc.lineage.asla:ASLATracker": 65.0 / 17.0}
 
 
 def _short(module: str) -> str:
@@ -101,8 +104,8 @@ def job_cost(job) -> float:
     particle count scales the time about linearly; the exact constrained coder is about 1.3x
     slower)."""
     params = getattr(job, "params", None)
-    if params is None:  # an OpenCV peer
-        return job.frames() * PEER_FRAME_COST
+    if params is None:  # a peer: one of the lineage's, or OpenCV's
+        return job.frames() * LINEAGE_FRAME_COST.get(getattr(job, "tracker", None), PEER_FRAME_COST)
     factor = params.n_particles / 600.0
     if getattr(params, "generative_weight", 0) > 0:
         # Measured when the generative term was adopted: SCM's full grid (150 candidates x 196 local
@@ -157,7 +160,7 @@ def grid_summary(context, jobs_by_script: dict, measure=measure_speed) -> tuple[
         new = [j for p, j in keys.items() if p not in unique and getattr(j, "uses_kernels", False)]
         lines.append(f"  {script}: {len(nrmlc)} NRMLC runs, {sum(j.frames() for j in nrmlc)} frames "
                      f"({sum(j.frames() for j in new)} not shared with the scripts above)"
-                     + (f"; {len(keys) - len(nrmlc)} OpenCV runs" if len(keys) > len(nrmlc) else ""))
+                     + (f"; {len(keys) - len(nrmlc)} peer runs" if len(keys) > len(nrmlc) else ""))
         unique.update(keys)
     union = list(unique.values())
     present = {path for path in unique if path.is_file()}
@@ -169,7 +172,7 @@ def grid_summary(context, jobs_by_script: dict, measure=measure_speed) -> tuple[
     peer_missing = sum(j.frames() for j in peers_ if cache.path(j) not in present)
     cost = sum(job_cost(j) for j in union if cache.path(j) not in present)
     text = "\n".join([f"[run_all] grid: {len(nrmlc)} NRMLC runs, {frames} frames ({frames - missing_frames} cached, "
-                      f"{missing_frames} to compute); {len(peers_)} OpenCV runs, {peer_frames} frames "
+                      f"{missing_frames} to compute); {len(peers_)} peer runs (OpenCV, the lineage), {peer_frames} frames "
                       f"({peer_missing} to compute). {estimate_text(context, cost, measure)}"]
                      + lines)
     counts = {"runs": len(nrmlc), "frames": frames, "missing_frames": missing_frames,

@@ -79,6 +79,8 @@ def test_run_all_writes_every_output(grid):
     assert not failures and len(state) == len(paths) and len(paths) >= 30
     # One live run per OpenCV tracker on the one sequence (MIL; KCF and CSRT with opencv-contrib).
     assert len(list((tmp / "cache" / "peers").glob("*.npz"))) == len(peers.live_trackers())
+    # One run per lineage tracker and seed (one seed here).
+    assert len(list((tmp / "cache" / "imported").glob("*.npz"))) == len(peers.LINEAGE_LIVE)
 
 
 def test_numbers_are_consistent(grid):
@@ -87,6 +89,10 @@ def test_numbers_are_consistent(grid):
     cell = table["cells"]["synth-01"]["Ours"]
     assert 0 <= cell["overlap"] <= 1 and cell["n_frames"] == 25
     assert "MIL (OpenCV)" in table["cells"]["synth-01"]
+    for name in peers.LINEAGE_LIVE:
+        live = table["cells"]["synth-01"][peers.lineage_label(name)]
+        assert live["source"] == "live" and live["n_runs"] == 1 and 0 <= live["overlap"] <= 1
+        assert live["n_frames"] == 25 and table["fps"][peers.lineage_label(name)] > 0
     sweep = json.loads((tmp / "figures" / "fig4_lambda_sweep.json").read_text())
     labels = [p["label"] for p in sweep["points"]]
     assert labels[:8] == [f"lambda={v:g}" for v in paper_numbers.FIG4_LAMBDAS] and labels[8] == "lambda=beta=0"

@@ -5,6 +5,8 @@ run per seed (mean ± std over ``context.seeds``). Beside it:
 
 - the paper's own NRMLC column ("Ours (paper)");
 - the OpenCV trackers run live on the same frames (:mod:`experiments.peers`);
+- the paper's lineage run live on the same frames, one run per seed as NRMLC ("IVT (live)",
+  "ASLA (live)": :data:`experiments.peers.LINEAGE_LIVE`);
 - the paper's eight peers: scored from the shipped per-frame results where
   they fit our frames, otherwise the paper's printed number, marked with a
   dagger (†).
@@ -47,13 +49,21 @@ def _specs(context) -> list:
 
 
 def runs(context) -> list:
-    """NRMLC with the base parameters on every given sequence, every main seed, and the live
-    OpenCV runs (every available tracker on every given sequence)."""
-    return _specs(context) + peers.live_specs(context, context.sequences())
+    """NRMLC with the base parameters on every given sequence, every main seed, the live
+    OpenCV runs (every available tracker on every given sequence) and the live lineage's (every
+    seed)."""
+    sequences = context.sequences()
+    return _specs(context) + peers.live_specs(context, sequences) + peers.lineage_specs(context, sequences)
 
 
 def _columns(live: list[str]) -> list[str]:
-    return [OURS, OURS_PAPER] + [peers.live_label(name) for name in live] + list(paper.PEERS)
+    return ([OURS, OURS_PAPER] + [peers.live_label(name) for name in live]
+            + [peers.lineage_label(name) for name in peers.LINEAGE_LIVE] + list(paper.PEERS))
+
+
+def _measured_columns(data: dict) -> list[str]:
+    """The columns run here on every sequence: the OpenCV trackers and the lineage, live."""
+    return [peers.live_label(n) for n in data["live"]] + [peers.lineage_label(n) for n in peers.LINEAGE_LIVE]
 
 
 def _cell(evaluations, source: str, fps=None) -> dict:
@@ -83,6 +93,7 @@ def collect(context) -> dict:
     results = context.run(specs)
     live_names = peers.live_trackers()
     live = peers.live_results(context, sequences)
+    lineage = peers.lineage_results(context, sequences)
     shipped, notes = peers.shipped_for(context, sequences)
     columns = _columns(live_names)
 
@@ -108,6 +119,10 @@ def collect(context) -> dict:
             result = live[tracker][sequence.name]
             cells[sequence.name][peers.live_label(tracker)] = _cell([score(result.boxes, sequence, n)], "live",
                                                                    result.fps_tracking)
+        for column, by_sequence in lineage.items():
+            results_ = by_sequence[sequence.name]
+            cells[sequence.name][column] = _cell([score(r.boxes, sequence, n) for r in results_], "live",
+                                                 _fps(results_))
         for tracker in paper.PEERS:
             if sequence.name in shipped.get(tracker, {}):
                 result = shipped[tracker][sequence.name]
@@ -123,6 +138,8 @@ def collect(context) -> dict:
         frames = sum(len(r.boxes) - 1 for r in runs_)
         seconds = sum(r.seconds_tracking for r in runs_)
         fps[peers.live_label(tracker)] = frames / seconds if seconds > 0 else None
+    for column, by_sequence in lineage.items():
+        fps[column] = _fps([r for results_ in by_sequence.values() for r in results_])
     for tracker in paper.PEERS:
         fps[tracker] = paper.FPS[tracker]
 
@@ -141,6 +158,12 @@ def collect(context) -> dict:
             "grid_frames": sum(s.frames() for s in specs), "max_frames": context.max_frames}
     data["curves"] = _panels(data)
     return data
+
+
+def _fps(results) -> float | None:
+    """Frames after the first over the tracking time, summed over ``results``."""
+    seconds = sum(r.seconds_tracking for r in results)
+    return sum(len(r.boxes) - 1 for r in results) / seconds if seconds > 0 else None
 
 
 def _averages(cells, per_seed, sequences, columns) -> dict:
@@ -238,7 +261,7 @@ def _panels(data: dict) -> dict:
     """{panel label: (sequence names, curves)}: all given sequences with NRMLC and the live
     trackers, and the paper's given sequences with every tracker that has a value there."""
     all_names = [n for _, _, names in data["blocks"] for n in names]
-    live_cols = [peers.live_label(n) for n in data["live"]]
+    live_cols = _measured_columns(data)
     panels = {"all given sequences": (all_names, _curves(data, all_names, [OURS] + live_cols))}
     paper_names = next((names for key, _, names in data["blocks"] if key == "paper"), [])
     if paper_names:
@@ -251,7 +274,7 @@ def plot(data: dict, path) -> None:
     """Success and precision plots: all given sequences (top), the paper's given sequences (bottom)."""
     import matplotlib.pyplot as plt
 
-    live_cols = [peers.live_label(n) for n in data["live"]]
+    live_cols = _measured_columns(data)
     columns = [OURS] + live_cols + list(paper.PEERS)
     panels = data["curves"]
     fig, axes = plt.subplots(len(panels), 2, figsize=(11, 4.6 * len(panels)), squeeze=False)
@@ -347,6 +370,11 @@ def report(context, data: dict) -> dict:
                 "paper numbers; `(n/N)` = average over the n of N sequences that have a value. "
                 "Ours (paper) is the paper's NRMLC column. fps: tracking time only (frame decoding excluded), "
                 "Python on this machine with runs in parallel workers; the paper's fps are MATLAB on a 2.13 GHz Xeon.")
+    lineage = ", ".join(peers.lineage_label(n) for n in peers.LINEAGE_LIVE)
+    text.append(f"{lineage}: the paper's lineage run live here as the OTB benchmark's MATLAB runs it "
+                "(`nrmlc/lineage/`; how close to the benchmark's own files: docs/research/lineage-fidelity.md), "
+                f"mean ± std over seeds {data['seeds']} as ours; the columns without '(live)' are the shipped "
+                "files or the paper's numbers.")
     text.append("")
     text.append(markdown_table(data, "cle", 1, "Table I: centre location error (px, lower is better)", False))
     text.append("")
