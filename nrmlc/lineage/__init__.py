@@ -12,4 +12,6 @@ TRACKERS = {
     "ivt": "nrmlc.lineage.ivt:IVTTracker",
     "asla": "nrmlc.lineage.asla:ASLATracker",
     "l1apg": "nrmlc.lineage.l1apg:L1APGTracker",
+    "l1": "nrmlc.lineage.l1:L1Tracker",
+    "mtt": "nrmlc.lineage.mtt:MTTTracker",
 }
