@@ -65,8 +65,10 @@ SPEED_FRAMES = 40
 #: per worker where NRMLC ran at about 95.
 PEER_FRAME_COST = 95.0 / 15.0
 #: The same for the lineage's live trackers (by factory): CPU time per frame on Car4, one thread
-#: (IVT about 15 ms, ASLA about 65 ms), over the 600-particle NRMLC frame's (about 17 ms).
-LINEAGE_FRAME_COST = {"nrmlc.lineage.ivt:IVTTracker": 15.0 / 17.0, "nrmlc.lineage.asla:ASLATracker": 65.0 / 17.0}
+#: (IVT about 15 ms, ASLA about 65 ms, L1 about 17 ms, L1-APG about 23 ms), over the 600-particle
+#: NRMLC frame's (about 17 ms).
+LINEAGE_FRAME_COST = {"nrmlc.lineage.ivt:IVTTracker": 15.0 / 17.0, "nrmlc.lineage.asla:ASLATracker": 65.0 / 17.0,
+                      "nrmlc.lineage.l1:L1Tracker": 17.0 / 17.0, "nrmlc.lineage.l1apg:L1APGTracker": 23.0 / 17.0}
 
 
 def _short(module: str) -> str:

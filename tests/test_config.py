@@ -103,6 +103,12 @@ def test_every_compiled_function_takes_its_flags_from_config():
                 assert len(decorator.keywords) == 1 and decorator.keywords[0].arg is None, (
                     f"{where}: flags must be exactly **NUMBA_FLAGS or **PARALLEL_FLAGS")
                 flags = decorator.keywords[0].value
+                if isinstance(flags, ast.Name) and flags.id == "EXACT_PARALLEL_FLAGS":
+                    continue  # config's parallel flags without fastmath: checked below
                 assert isinstance(flags, ast.Name) and flags.id in {"NUMBA_FLAGS", "PARALLEL_FLAGS"}, where
                 assert flags.id in imported, f"{where}: {flags.id} not imported from nrmlc.config"
     assert found >= 8  # the kernels exist: a test that finds nothing would pass vacuously
+    from nrmlc.config import PARALLEL_FLAGS
+    from nrmlc.lineage.affine import EXACT_PARALLEL_FLAGS
+
+    assert EXACT_PARALLEL_FLAGS == {**PARALLEL_FLAGS, "fastmath": False}

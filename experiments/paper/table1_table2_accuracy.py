@@ -6,7 +6,7 @@ run per seed (mean ± std over ``context.seeds``). Beside it:
 - the paper's own NRMLC column ("Ours (paper)");
 - the OpenCV trackers run live on the same frames (:mod:`experiments.peers`);
 - the paper's lineage run live on the same frames, one run per seed as NRMLC ("IVT (live)",
-  "ASLA (live)": :data:`experiments.peers.LINEAGE_LIVE`);
+  "ASLA (live)", "L1 (live)", "L1APG (live)": :data:`experiments.peers.LINEAGE_LIVE`);
 - the paper's eight peers: scored from the shipped per-frame results where
   they fit our frames, otherwise the paper's printed number, marked with a
   dagger (†).

@@ -26,6 +26,10 @@ from nrmlc.config import PARALLEL_FLAGS
 from nrmlc.errors import ParameterError
 from nrmlc.kernels.checks import check_array
 
+#: :data:`nrmlc.config.PARALLEL_FLAGS` without fastmath, for a kernel that must round as a MATLAB
+#: mex does: no fused multiply-add may move a coordinate across a half before it is rounded.
+EXACT_PARALLEL_FLAGS = dict(PARALLEL_FLAGS, fastmath=False)
+
 
 def geom_to_matrix(geom) -> np.ndarray:
     """Matrix states of geometric ones (``affparam2mat.m``).

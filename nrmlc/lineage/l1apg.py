@@ -84,7 +84,7 @@ from scipy import ndimage
 
 from nrmlc.errors import ParameterError
 from nrmlc.kernels.checks import check_array
-from nrmlc.lineage.affine import gray_frame
+from nrmlc.lineage.affine import EXACT_PARALLEL_FLAGS, gray_frame
 from nrmlc.lineage.apg import apg_lasso
 from nrmlc.lineage.apg import warm_up as _warm_up_apg
 from nrmlc.workbench.otb_results import l1_affine_boxes
@@ -233,7 +233,7 @@ def corners_to_state(corners, template_size) -> np.ndarray:
 
 # Without fastmath: the row and column must be rounded from the same sums as the mex computes,
 # ((a11 r + a12 c) + tr), with no fused multiply-add moving a value across a half.
-@njit(cache=True, nogil=True, parallel=True)
+@njit(**EXACT_PARALLEL_FLAGS)
 def _crop_patches(frame, states, patches, in_range):
     height, width = frame.shape
     rows, cols = patches.shape[1], patches.shape[2]
