@@ -29,7 +29,7 @@ from nrmlc.workbench.score import compare  # noqa: E402
 from nrmlc.data import synthetic_suite  # noqa: E402
 from nrmlc.io import write_boxes  # noqa: E402
 from nrmlc.workbench.metrics import overlaps  # noqa: E402
-from nrmlc.workbench.toolkits import NRMLCGot10k  # noqa: E402
+from nrmlc.workbench.toolkits import LineageGot10k, NRMLCGot10k  # noqa: E402
 from nrmlc.tracker.experts import make_tracker  # noqa: E402
 
 FAST = dict(n_particles=50, n_positive=10, n_negative=20, max_positive=20)
@@ -94,6 +94,35 @@ def test_got10k_track_loop_with_pil_frames(otb_root):
     tracker.init(gray[0], truth[0])
     manual = np.array([truth[0]] + [tracker.update(g) for g in gray[1:]])
     np.testing.assert_array_equal(manual, boxes)
+
+
+def test_a_lineage_tracker_runs_in_got10k_as_track_runs_it(otb_root):
+    """got10k's loop with a lineage tracker: RGB in, the boxes of the tracker fed the same frames in
+    BGR order, and each init starts again from the seed."""
+    from nrmlc.errors import ParameterError
+    from nrmlc.lineage.ivt import IVTTracker
+
+    files, truth = _files_and_truth(otb_root, NAMES[0])
+    adapter = LineageGot10k("IVT", seed=2)
+    assert isinstance(adapter, Tracker) and adapter.name == "IVT"
+    boxes, _ = adapter.track(files, truth[0])
+    again, _ = adapter.track(files, truth[0])  # the same object, a second sequence run
+    np.testing.assert_array_equal(again, boxes)
+    tracker = IVTTracker(seed=2)
+    bgr = [np.asarray(Image.open(f).convert("RGB"))[:, :, ::-1].copy() for f in files]
+    tracker.init(bgr[0], truth[0])
+    np.testing.assert_array_equal(boxes, np.array([truth[0]] + [tracker.update(b) for b in bgr[1:]]))
+    # The synthetic frames are gray: the reordering itself, on a coloured pixel and a PIL image.
+    from nrmlc.workbench.toolkits import _bgr
+
+    rgb = np.array([[[10, 20, 30], [40, 50, 60]]], dtype=np.uint8)
+    np.testing.assert_array_equal(_bgr(rgb), rgb[:, :, ::-1])
+    np.testing.assert_array_equal(_bgr(Image.fromarray(rgb)), rgb[:, :, ::-1])
+    np.testing.assert_array_equal(_bgr(rgb[:, :, 0]), rgb[:, :, 0])
+    np.testing.assert_array_equal(boxes[0], truth[0])
+    assert overlaps(boxes, truth)[1:4].mean() > 0.6  # IVT follows its first frames (0.72-0.85 here)
+    with pytest.raises(ParameterError, match="'kcf' is not a lineage tracker"):
+        LineageGot10k("kcf")
 
 
 def test_experiment_otb_runs_offline_and_agrees_with_nrmlc_evaluate(otb_root, tmp_path, capsys):
