@@ -37,7 +37,8 @@ from numba import njit, prange
 
 from nrmlc.config import NUMBA_FLAGS, PARALLEL_FLAGS
 from nrmlc.errors import ParameterError
-from nrmlc.kernels.checks import check_array, check_finite, check_int, check_nonnegative_real
+from nrmlc.lineage.checks import check_targets_and_signals
+from nrmlc.kernels.checks import check_int, check_nonnegative_real
 
 __all__ = ["apg_lasso", "apg_lasso_reference"]
 
@@ -142,15 +143,7 @@ def apg_lasso(targets: np.ndarray, signals: np.ndarray, lambdas, lipschitz: floa
     trivial_coefficients : (n, N) float64
         ``x_I`` of each signal.
     """
-    check_array("targets", targets, np.float64, 2)
-    check_array("signals", signals, np.float64, 2)
-    k, size = targets.shape
-    if k == 0 or size == 0:
-        raise ParameterError(f"targets must have at least one atom and one pixel, got shape {targets.shape}")
-    if signals.shape[1] != size:
-        raise ParameterError(f"signals have {signals.shape[1]} pixels, targets have {size}")
-    check_finite("targets", targets)
-    check_finite("signals", signals)
+    k, size = check_targets_and_signals(targets, signals)
     values = tuple(lambdas) if isinstance(lambdas, (tuple, list, np.ndarray)) else ()
     if len(values) != 3:
         raise ParameterError(f"lambdas must be 3 numbers (lambda1, lambda2, mu), got {lambdas!r}")

@@ -55,6 +55,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from nrmlc.errors import ParameterError
+from nrmlc.lineage.checks import check_affine_sigma, check_integer, check_real
 from nrmlc.lineage.affine import box_to_geom, geom_to_matrix, gray_frame, matrix_to_box, matrix_to_geom, warp_patches
 from nrmlc.lineage.lasso import SPAMS_RIDGE, lasso_nonnegative_gram
 from nrmlc.lineage.subspace import Subspace
@@ -91,33 +92,21 @@ class ASLAParams:
     intensity_scale: float = 255.0
 
     def __post_init__(self) -> None:
-        def integer(name, low, high):
-            value = getattr(self, name)
-            if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or not low <= value <= high:
-                raise ParameterError(f"ASLAParams.{name} must be an integer in {low}..{high}, got {value!r}")
-
-        integer("n_particles", 1, 100_000)
-        integer("template_side", 2, 256)
-        integer("patch_side", 1, self.template_side if isinstance(self.template_side, int) else 256)
-        integer("patch_step", 1, 256)
-        integer("n_exemplars", 2, 30)
-        integer("batch_size", 1, 1000)
-        integer("max_basis", 1, 1000)
+        check_integer(self, "n_particles", 1, 100_000)
+        check_integer(self, "template_side", 2, 256)
+        check_integer(self, "patch_side", 1, self.template_side)
+        check_integer(self, "patch_step", 1, 256)
+        check_integer(self, "n_exemplars", 2, 30)
+        check_integer(self, "batch_size", 1, 1000)
+        check_integer(self, "max_basis", 1, 1000)
         if (self.template_side - self.patch_side) % self.patch_step:
             raise ParameterError(f"ASLAParams: (template_side - patch_side) must be a multiple of patch_step, got "
                                  f"{self.template_side}, {self.patch_side}, {self.patch_step}")
-        sigma = self.affine_sigma
-        if not (isinstance(sigma, (tuple, list)) and len(sigma) == 6 and all(
-                isinstance(s, (int, float, np.number)) and np.isfinite(s) and 0 <= s < 1e4 for s in sigma)):
-            raise ParameterError(f"ASLAParams.affine_sigma must be 6 numbers in [0, 1e4), got {self.affine_sigma!r}")
-        if not (np.isfinite(self.lasso_lambda) and 0 < self.lasso_lambda <= 1e3):
-            raise ParameterError(f"ASLAParams.lasso_lambda must be in (0, 1e3], got {self.lasso_lambda!r}")
-        if not (np.isfinite(self.lasso_ridge) and 0 <= self.lasso_ridge <= 1.0):
-            raise ParameterError(f"ASLAParams.lasso_ridge must be in [0, 1], got {self.lasso_ridge!r}")
-        if not (0 < self.forgetting <= 1):
-            raise ParameterError(f"ASLAParams.forgetting must be in (0, 1], got {self.forgetting!r}")
-        if not (np.isfinite(self.intensity_scale) and 0 < self.intensity_scale <= 1e6):
-            raise ParameterError(f"ASLAParams.intensity_scale must be in (0, 1e6], got {self.intensity_scale!r}")
+        check_affine_sigma(self)
+        check_real(self, "lasso_lambda", 0.0, 1e3, low_open=True)
+        check_real(self, "lasso_ridge", 0.0, 1.0)
+        check_real(self, "forgetting", 0.0, 1.0, low_open=True)
+        check_real(self, "intensity_scale", 0.0, 1e6, low_open=True)
 
     @property
     def patches_per_side(self) -> int:

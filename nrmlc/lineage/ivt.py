@@ -28,7 +28,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from nrmlc.errors import ParameterError
+from nrmlc.lineage.checks import check_affine_sigma, check_integer, check_real
 from nrmlc.lineage.affine import box_to_geom, geom_to_matrix, gray_frame, matrix_to_box, matrix_to_geom, warm_up, warp_patches
 from nrmlc.lineage.subspace import Subspace
 
@@ -53,16 +53,11 @@ class IVTParams:
     intensity_scale: float = 256.0
 
     def __post_init__(self) -> None:
-        if not (isinstance(self.n_particles, int) and 1 <= self.n_particles <= 100_000):
-            raise ParameterError(f"IVTParams.n_particles must be an integer in 1..100000, got {self.n_particles!r}")
-        if not (0 < self.condenssig <= 1e6):
-            raise ParameterError(f"IVTParams.condenssig must be in (0, 1e6], got {self.condenssig!r}")
-        if not (0 < self.forgetting <= 1):
-            raise ParameterError(f"IVTParams.forgetting must be in (0, 1], got {self.forgetting!r}")
-        if not (isinstance(self.batch_size, int) and 1 <= self.batch_size <= 1000):
-            raise ParameterError(f"IVTParams.batch_size must be an integer in 1..1000, got {self.batch_size!r}")
-        if len(self.affine_sigma) != 6 or not all(0 <= s < 1e4 for s in self.affine_sigma):
-            raise ParameterError(f"IVTParams.affine_sigma must be 6 numbers in [0, 1e4), got {self.affine_sigma!r}")
+        check_integer(self, "n_particles", 1, 100_000)
+        check_real(self, "condenssig", 0.0, 1e6, low_open=True)
+        check_real(self, "forgetting", 0.0, 1.0, low_open=True)
+        check_integer(self, "batch_size", 1, 1000)
+        check_affine_sigma(self)
 
 
 class IVTTracker:

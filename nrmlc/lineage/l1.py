@@ -90,7 +90,9 @@ from numba import njit, prange
 
 from nrmlc.config import NUMBA_FLAGS, PARALLEL_FLAGS
 from nrmlc.errors import ParameterError
-from nrmlc.kernels.checks import check_array, check_finite, check_nonnegative_real
+from nrmlc.lineage.checks import (check_affine_sigma, check_integer, check_real, check_targets_and_signals,
+                                  check_template_size)
+from nrmlc.kernels.checks import check_nonnegative_real
 from nrmlc.lineage.l1apg import (box_corners, corners_to_state, crop_patches, draw_states, gray_levels,
                                  resample_states, whiten)
 from nrmlc.lineage.lasso import SPAMS_RIDGE
@@ -157,33 +159,14 @@ class L1Params:
     weight_cap: float = 0.3
 
     def __post_init__(self) -> None:
-        def integer(name, low, high):
-            value = getattr(self, name)
-            if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or not low <= value <= high:
-                raise ParameterError(f"L1Params.{name} must be an integer in {low}..{high}, got {value!r}")
-
-        def real(name, low, high, low_open=False):
-            value = getattr(self, name)
-            good = isinstance(value, (int, float, np.number)) and not isinstance(value, bool) and np.isfinite(value)
-            if not (good and (low < value if low_open else low <= value) and value <= high):
-                interval = f"{'(' if low_open else '['}{low}, {high}]"
-                raise ParameterError(f"L1Params.{name} must be in {interval}, got {value!r}")
-
-        integer("n_particles", 1, 100_000)
-        integer("n_templates", 1, len(TEMPLATE_SHIFTS))
-        size = self.template_size
-        if not (isinstance(size, (tuple, list)) and len(size) == 2 and all(
-                not isinstance(v, bool) and isinstance(v, (int, np.integer)) and 2 <= v <= 256 for v in size)):
-            raise ParameterError(f"L1Params.template_size must be 2 integers in 2..256, got {size!r}")
-        sigma = self.affine_sigma
-        if not (isinstance(sigma, (tuple, list)) and len(sigma) == 6 and all(
-                isinstance(s, (int, float, np.number)) and not isinstance(s, bool) and np.isfinite(s)
-                and 0 <= s < 1e4 for s in sigma)):
-            raise ParameterError(f"L1Params.affine_sigma must be 6 numbers in [0, 1e4), got {sigma!r}")
-        real("lam", 0.0, 1e3, low_open=True)
-        real("alpha", 0.0, 1e6, low_open=True)
-        real("angle_threshold", 0.0, 180.0)
-        real("weight_cap", 0.0, 1.0, low_open=True)
+        check_integer(self, "n_particles", 1, 100_000)
+        check_integer(self, "n_templates", 1, len(TEMPLATE_SHIFTS))
+        check_template_size(self)
+        check_affine_sigma(self)
+        check_real(self, "lam", 0.0, 1e3, low_open=True)
+        check_real(self, "alpha", 0.0, 1e6, low_open=True)
+        check_real(self, "angle_threshold", 0.0, 180.0)
+        check_real(self, "weight_cap", 0.0, 1.0, low_open=True)
         if self.weight_cap * self.n_templates < 1.0:
             raise ParameterError(f"L1Params.weight_cap times n_templates must be >= 1 (weights sum to 1), "
                                  f"got {self.weight_cap!r} x {self.n_templates}")
@@ -496,15 +479,7 @@ def trivial_lasso(targets: np.ndarray, signals: np.ndarray, lam: float, ridge: f
     steps : (n,) int64
         Only with ``return_steps``.
     """
-    check_array("targets", targets, np.float64, 2)
-    check_array("signals", signals, np.float64, 2)
-    k, size = targets.shape
-    if k == 0 or size == 0:
-        raise ParameterError(f"targets must have at least one atom and one pixel, got shape {targets.shape}")
-    if signals.shape[1] != size:
-        raise ParameterError(f"signals have {signals.shape[1]} pixels, targets have {size}")
-    check_finite("targets", targets)
-    check_finite("signals", signals)
+    k, size = check_targets_and_signals(targets, signals)
     lam = check_nonnegative_real("lam", lam)
     if lam <= 0.0:
         raise ParameterError(f"lam must be > 0, got {lam}")

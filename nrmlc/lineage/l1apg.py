@@ -83,6 +83,7 @@ from numba import njit, prange
 from scipy import ndimage
 
 from nrmlc.errors import ParameterError
+from nrmlc.lineage.checks import check_affine_sigma, check_integer, check_real, check_template_size
 from nrmlc.kernels.checks import check_array
 from nrmlc.lineage.affine import EXACT_PARALLEL_FLAGS, gray_frame
 from nrmlc.lineage.apg import apg_lasso
@@ -136,40 +137,21 @@ class L1APGParams:
     occlusion_frames: int = 5
 
     def __post_init__(self) -> None:
-        def integer(name, low, high):
-            value = getattr(self, name)
-            if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or not low <= value <= high:
-                raise ParameterError(f"L1APGParams.{name} must be an integer in {low}..{high}, got {value!r}")
-
-        def real(name, low, high, low_open=False):
-            value = getattr(self, name)
-            good = isinstance(value, (int, float, np.number)) and not isinstance(value, bool) and np.isfinite(value)
-            if not (good and (low < value if low_open else low <= value) and value <= high):
-                interval = f"{'(' if low_open else '['}{low}, {high}]"
-                raise ParameterError(f"L1APGParams.{name} must be in {interval}, got {value!r}")
-
-        integer("n_particles", 2, 100_000)
-        integer("n_templates", 1, 100)
-        integer("max_iter", 0, 10_000)
-        integer("occlusion_frames", 0, 1_000_000)
-        size = self.template_size
-        if not (isinstance(size, (tuple, list)) and len(size) == 2 and all(
-                not isinstance(v, bool) and isinstance(v, (int, np.integer)) and 2 <= v <= 256 for v in size)):
-            raise ParameterError(f"L1APGParams.template_size must be 2 integers in 2..256, got {size!r}")
-        sigma = self.affine_sigma
-        if not (isinstance(sigma, (tuple, list)) and len(sigma) == 6 and all(
-                isinstance(s, (int, float, np.number)) and not isinstance(s, bool) and np.isfinite(s)
-                and 0 <= s < 1e4 for s in sigma)):
-            raise ParameterError(f"L1APGParams.affine_sigma must be 6 numbers in [0, 1e4), got {sigma!r}")
-        real("lambda_template", 0.0, 1e3)
-        real("lambda_trivial", 0.0, 1e3)
-        real("mu", 0.0, 1e3)
-        real("lipschitz", 0.0, 1e6, low_open=True)
-        real("alpha", 0.0, 1e6, low_open=True)
-        real("angle_threshold", 0.0, 180.0)
-        real("template_jitter", 0.0, 1e3)
-        real("occlusion_level", 0.0, 1e3)
-        real("occlusion_fraction", 0.0, 1.0, low_open=True)
+        check_integer(self, "n_particles", 2, 100_000)
+        check_integer(self, "n_templates", 1, 100)
+        check_integer(self, "max_iter", 0, 10_000)
+        check_integer(self, "occlusion_frames", 0, 1_000_000)
+        check_template_size(self)
+        check_affine_sigma(self)
+        check_real(self, "lambda_template", 0.0, 1e3)
+        check_real(self, "lambda_trivial", 0.0, 1e3)
+        check_real(self, "mu", 0.0, 1e3)
+        check_real(self, "lipschitz", 0.0, 1e6, low_open=True)
+        check_real(self, "alpha", 0.0, 1e6, low_open=True)
+        check_real(self, "angle_threshold", 0.0, 180.0)
+        check_real(self, "template_jitter", 0.0, 1e3)
+        check_real(self, "occlusion_level", 0.0, 1e3)
+        check_real(self, "occlusion_fraction", 0.0, 1.0, low_open=True)
 
 
 def matlab_round(x):

@@ -51,7 +51,8 @@ from numba import njit, prange
 
 from nrmlc.config import PARALLEL_FLAGS
 from nrmlc.errors import ParameterError
-from nrmlc.kernels.checks import check_array, check_finite, check_int, check_nonnegative_real
+from nrmlc.lineage.checks import check_targets_and_signals
+from nrmlc.kernels.checks import check_int, check_nonnegative_real
 
 __all__ = ["l21_apg", "l21_apg_reference", "l21_objective"]
 
@@ -205,15 +206,7 @@ def l21_apg(targets: np.ndarray, signals: np.ndarray, lam: float, eta: float, to
     steps : int
         The steps run.
     """
-    check_array("targets", targets, np.float64, 2)
-    check_array("signals", signals, np.float64, 2)
-    k, size = targets.shape
-    if k == 0 or size == 0:
-        raise ParameterError(f"targets must have at least one atom and one pixel, got shape {targets.shape}")
-    if signals.shape[1] != size:
-        raise ParameterError(f"signals have {signals.shape[1]} pixels, targets have {size}")
-    check_finite("targets", targets)
-    check_finite("signals", signals)
+    k, size = check_targets_and_signals(targets, signals)
     lam = check_nonnegative_real("lam", lam)
     eta = check_nonnegative_real("eta", eta)
     if eta <= 0.0:

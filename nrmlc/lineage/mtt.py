@@ -92,6 +92,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from nrmlc.errors import ParameterError
+from nrmlc.lineage.checks import check_affine_sigma, check_integer, check_real, check_template_size
 from nrmlc.lineage.l1 import TEMPLATE_SHIFTS, images_angle, normalize_weights
 from nrmlc.lineage.l1apg import corners_to_state, crop_patches, draw_states, gray_levels, resample_states, whiten
 from nrmlc.lineage.l21 import l21_apg
@@ -130,36 +131,17 @@ class MTTParams:
     max_weight: float = 0.3
 
     def __post_init__(self) -> None:
-        def integer(name, low, high):
-            value = getattr(self, name)
-            if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or not low <= value <= high:
-                raise ParameterError(f"MTTParams.{name} must be an integer in {low}..{high}, got {value!r}")
-
-        def real(name, low, high, low_open=False):
-            value = getattr(self, name)
-            good = isinstance(value, (int, float, np.number)) and not isinstance(value, bool) and np.isfinite(value)
-            if not (good and (low < value if low_open else low <= value) and value <= high):
-                interval = f"{'(' if low_open else '['}{low}, {high}]"
-                raise ParameterError(f"MTTParams.{name} must be in {interval}, got {value!r}")
-
-        integer("n_particles", 1, 100_000)
-        integer("n_templates", 1, len(TEMPLATE_SHIFTS))
-        integer("max_iter", 0, 100_000)
-        size = self.template_size
-        if not (isinstance(size, (tuple, list)) and len(size) == 2 and all(
-                not isinstance(v, bool) and isinstance(v, (int, np.integer)) and 2 <= v <= 256 for v in size)):
-            raise ParameterError(f"MTTParams.template_size must be 2 integers in 2..256, got {size!r}")
-        sigma = self.affine_sigma
-        if not (isinstance(sigma, (tuple, list)) and len(sigma) == 6 and all(
-                isinstance(s, (int, float, np.number)) and not isinstance(s, bool) and np.isfinite(s)
-                and 0 <= s < 1e4 for s in sigma)):
-            raise ParameterError(f"MTTParams.affine_sigma must be 6 numbers in [0, 1e4), got {sigma!r}")
-        real("lam", 0.0, 1e3)
-        real("eta", 0.0, 1e3, low_open=True)
-        real("objective_tolerance", 0.0, 1.0)
-        real("alpha", 0.0, 1e6, low_open=True)
-        real("theta", -1.0, 1.0)
-        real("max_weight", 0.0, 1.0, low_open=True)
+        check_integer(self, "n_particles", 1, 100_000)
+        check_integer(self, "n_templates", 1, len(TEMPLATE_SHIFTS))
+        check_integer(self, "max_iter", 0, 100_000)
+        check_template_size(self)
+        check_affine_sigma(self)
+        check_real(self, "lam", 0.0, 1e3)
+        check_real(self, "eta", 0.0, 1e3, low_open=True)
+        check_real(self, "objective_tolerance", 0.0, 1.0)
+        check_real(self, "alpha", 0.0, 1e6, low_open=True)
+        check_real(self, "theta", -1.0, 1.0)
+        check_real(self, "max_weight", 0.0, 1.0, low_open=True)
         if self.max_weight * self.n_templates < 1.0:
             raise ParameterError(f"MTTParams.max_weight times n_templates must be >= 1 (weights sum to 1), "
                                  f"got {self.max_weight} x {self.n_templates}")
