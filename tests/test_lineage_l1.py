@@ -4,14 +4,14 @@ import numpy as np
 import pytest
 
 import nrmlc.lineage.l1 as l1
-from nrmlc.data import SyntheticSequence, SyntheticSpec, open_sequence
+from nrmlc.data import SyntheticSequence, SyntheticSpec
 from nrmlc.errors import ParameterError
+from nrmlc.testing import lineage
 from nrmlc.lineage import TRACKERS
 from nrmlc.lineage.l1 import (TEMPLATE_SHIFTS, L1Params, L1Tracker, images_angle, normalize_weights,
                               trivial_lasso, trivial_lasso_reference)
 from nrmlc.lineage.l1apg import box_corners, corners_to_state
 from nrmlc.lineage.lasso import SPAMS_RIDGE, lasso_nonnegative
-from nrmlc.workbench.metrics import evaluate
 from nrmlc.workbench.otb_results import l1_affine_boxes
 
 LAM = 0.01
@@ -223,18 +223,10 @@ def test_bad_box_and_frame():
         tracker.init(np.zeros((60, 80), dtype=np.float32), [10, 10, 20, 20])
 
 
-def _track(sequence, n_frames, seed=0, start=0):
-    tracker = L1Tracker(seed=seed)
-    first = np.asarray(sequence.groundtruth[start], dtype=np.float64)
-    tracker.init(sequence.color_frame(start), first)
-    boxes = [first]
-    for index in range(start + 1, start + n_frames):
-        box = tracker.update(sequence.color_frame(index))
-        assert box.shape == (4,) and box.dtype == np.float64
-        np.testing.assert_array_equal(box, l1_affine_boxes(tracker.state[None], (12, 15))[0])
-        boxes.append(box)
+def _check_box(tracker, box):
+    # the box is the toolkit's of the state, and every lasso converged
+    np.testing.assert_array_equal(box, l1_affine_boxes(tracker.state[None], (12, 15))[0])
     assert tracker.unconverged == 0
-    return np.array(boxes)
 
 
 @pytest.fixture(scope="module")
@@ -244,46 +236,23 @@ def synthetic():
 
 @pytest.fixture(scope="module")
 def tracked(synthetic):
-    return _track(synthetic, 40)
+    return lineage.track(L1Tracker, synthetic, 40, on_box=_check_box)
 
 
 def test_tracks_a_moving_target(synthetic, tracked):
-    overlap = evaluate(tracked, synthetic.groundtruth).mean_overlap
-    still = evaluate(np.repeat(tracked[:1], len(tracked), axis=0), synthetic.groundtruth).mean_overlap
-    assert still < 0.2
+    overlap, still = lineage.overlap_and_still(tracked, synthetic.groundtruth)
+    assert still < 0.2  # the target moves away from its first box
     assert overlap > 0.65, (overlap, still)
 
 
 def test_same_seed_same_boxes(synthetic, tracked):
-    np.testing.assert_array_equal(_track(synthetic, 15, seed=0), tracked[:15])
-    assert not np.array_equal(_track(synthetic, 15, seed=1), tracked[:15])
+    lineage.check_seeds(L1Tracker, synthetic, tracked, 15)
 
 
 def test_boxes_do_not_depend_on_the_thread_count(synthetic, tracked):
-    if numba.config.NUMBA_NUM_THREADS < 2:
-        pytest.skip("numba was started with a single thread")
-    before = numba.get_num_threads()
-    try:
-        numba.set_num_threads(1)
-        one = _track(synthetic, 15)
-        numba.set_num_threads(2)
-        two = _track(synthetic, 15)
-    finally:
-        numba.set_num_threads(before)
-    np.testing.assert_array_equal(one, two)
-    np.testing.assert_array_equal(one, tracked[:15])
+    lineage.check_thread_counts(L1Tracker, synthetic, tracked, 15)
 
 
 def test_car4_follows_the_car_where_a_still_box_loses_it(real_data_root):
-    """Car4 frames 151-250 (from the ground truth at frame 151): the car drives off, a still box
-    keeps 0.39 mean overlap. Seeds 0-4 gave 0.74-0.87 here."""
-    folder = real_data_root / "Car4"
-    if not folder.is_dir():
-        pytest.skip(f"Car4 not found in {real_data_root}")
-    sequence = open_sequence(folder)
-    boxes = _track(sequence, 100, seed=0, start=150)
-    truth = sequence.groundtruth[150:250]
-    overlap = evaluate(boxes, truth).mean_overlap
-    still = evaluate(np.repeat(truth[:1], 100, axis=0), truth).mean_overlap
-    assert still < 0.45
-    assert overlap > 0.65, (overlap, still)
+    """:func:`nrmlc.testing.lineage.check_car4`. Seeds 0-4 gave 0.74-0.87 there."""
+    lineage.check_car4(L1Tracker, real_data_root, 0.65, on_box=_check_box)

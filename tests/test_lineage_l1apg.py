@@ -4,14 +4,14 @@ import numpy as np
 import pytest
 
 import nrmlc.lineage.l1apg as l1apg
-from nrmlc.data import SyntheticSequence, SyntheticSpec, open_sequence
+from nrmlc.data import SyntheticSequence, SyntheticSpec
 from nrmlc.errors import ParameterError
+from nrmlc.testing import lineage
 from nrmlc.lineage import TRACKERS
 from nrmlc.lineage.apg import apg_lasso, apg_lasso_reference
 from nrmlc.lineage.l1apg import (L1APGParams, L1APGTracker, box_corners, corners_to_state, crop_patches,
                                  crop_patches_reference, images_angle, largest_occluded_region, resample_states,
                                  whiten)
-from nrmlc.workbench.metrics import evaluate
 from nrmlc.workbench.otb_results import l1_affine_boxes
 
 AUTHORS_LAMBDAS = (0.01, 0.001, 1.0)
@@ -489,18 +489,6 @@ def test_bad_box_and_frame():
 # --------------------------------------------------------------------------- tracking
 
 
-def _track(sequence, n_frames, seed=0, start=0):
-    tracker = L1APGTracker(seed=seed)
-    first = np.asarray(sequence.groundtruth[start], dtype=np.float64)
-    tracker.init(sequence.color_frame(start), first)
-    boxes = [first]
-    for index in range(start + 1, start + n_frames):
-        box = tracker.update(sequence.color_frame(index))
-        assert box.shape == (4,) and box.dtype == np.float64
-        boxes.append(box)
-    return np.array(boxes)
-
-
 @pytest.fixture(scope="module")
 def synthetic():
     return SyntheticSequence(SyntheticSpec(name="l1apg", seed=1, n_frames=40))
@@ -508,47 +496,23 @@ def synthetic():
 
 @pytest.fixture(scope="module")
 def tracked(synthetic):
-    return _track(synthetic, 40)
+    return lineage.track(L1APGTracker, synthetic, 40)
 
 
 def test_tracks_a_moving_target(synthetic, tracked):
-    overlap = evaluate(tracked, synthetic.groundtruth).mean_overlap
-    still = evaluate(np.repeat(tracked[:1], len(tracked), axis=0), synthetic.groundtruth).mean_overlap
+    overlap, still = lineage.overlap_and_still(tracked, synthetic.groundtruth)
     assert still < 0.2  # the target moves away from its first box
     assert overlap > 0.65, (overlap, still)
 
 
 def test_same_seed_same_boxes(synthetic, tracked):
-    np.testing.assert_array_equal(_track(synthetic, 15, seed=0), tracked[:15])
-    assert not np.array_equal(_track(synthetic, 15, seed=1), tracked[:15])
+    lineage.check_seeds(L1APGTracker, synthetic, tracked, 15)
 
 
 def test_boxes_do_not_depend_on_the_thread_count(synthetic, tracked):
-    if numba.config.NUMBA_NUM_THREADS < 2:
-        pytest.skip("numba was started with a single thread")
-    before = numba.get_num_threads()
-    try:
-        numba.set_num_threads(1)
-        one = _track(synthetic, 15)
-        numba.set_num_threads(2)
-        two = _track(synthetic, 15)
-    finally:
-        numba.set_num_threads(before)
-    np.testing.assert_array_equal(one, two)
-    np.testing.assert_array_equal(one, tracked[:15])
+    lineage.check_thread_counts(L1APGTracker, synthetic, tracked, 15)
 
 
 def test_car4_follows_the_car_where_a_still_box_loses_it(real_data_root):
-    """Car4 frames 151-250 (from the ground truth at frame 151): the car drives off, a still box
-    keeps 0.39 mean overlap. (Over the first 60 frames a still box keeps 0.80, too close to a
-    tracker to tell.) Seeds 0-4 gave 0.81-0.84 here."""
-    folder = real_data_root / "Car4"
-    if not folder.is_dir():
-        pytest.skip(f"Car4 not found in {real_data_root}")
-    sequence = open_sequence(folder)
-    boxes = _track(sequence, 100, seed=0, start=150)
-    truth = sequence.groundtruth[150:250]
-    overlap = evaluate(boxes, truth).mean_overlap
-    still = evaluate(np.repeat(truth[:1], 100, axis=0), truth).mean_overlap
-    assert still < 0.45
-    assert overlap > 0.7, (overlap, still)
+    """:func:`nrmlc.testing.lineage.check_car4`. Seeds 0-4 gave 0.81-0.84 there."""
+    lineage.check_car4(L1APGTracker, real_data_root, 0.7)

@@ -90,11 +90,10 @@ from numba import njit, prange
 
 from nrmlc.config import NUMBA_FLAGS, PARALLEL_FLAGS
 from nrmlc.errors import ParameterError
-from nrmlc.lineage.checks import (check_affine_sigma, check_integer, check_real, check_targets_and_signals,
-                                  check_template_size)
+from nrmlc.lineage.checks import (check_real, check_targets_and_signals)
 from nrmlc.kernels.checks import check_nonnegative_real
-from nrmlc.lineage.l1apg import (box_corners, corners_to_state, crop_patches, draw_states, gray_levels,
-                                 resample_states, whiten)
+from nrmlc.lineage.l1apg import (TemplateTrackerParams, box_corners, corners_to_state, crop_patches, draw_states,
+                                 gray_levels, resample_states, whiten)
 from nrmlc.lineage.lasso import SPAMS_RIDGE
 from nrmlc.workbench.otb_results import l1_affine_boxes
 
@@ -138,16 +137,11 @@ _MAX_BLOCKS = 64
 
 
 @dataclass(frozen=True)
-class L1Params:
-    """L1's parameters (the release's ``L1Tracking_release.m`` and ``demo.m``)."""
+class L1Params(TemplateTrackerParams):
+    """L1's parameters (the release's ``L1Tracking_release.m`` and ``demo.m``; the shared fields:
+    :class:`~nrmlc.lineage.l1apg.TemplateTrackerParams`)."""
 
-    n_particles: int = 600
-    #: Template rows and columns (``sz_T``).
     template_size: tuple = (12, 15)
-    #: Target templates (``nT``).
-    n_templates: int = 10
-    #: Relative deviations of the sampling (``rel_std_afnv``): log a11, a12, a21, log a22, then the
-    #: row and column translation; all but the first and fourth are multiplied by the state's scale.
     affine_sigma: tuple = (0.005, 0.0005, 0.0005, 0.005, 1.0, 1.0)
     #: The lasso's l1 weight (``param.lambda``).
     lam: float = 0.01
@@ -159,10 +153,7 @@ class L1Params:
     weight_cap: float = 0.3
 
     def __post_init__(self) -> None:
-        check_integer(self, "n_particles", 1, 100_000)
-        check_integer(self, "n_templates", 1, len(TEMPLATE_SHIFTS))
-        check_template_size(self)
-        check_affine_sigma(self)
+        self._check_shared(1, len(TEMPLATE_SHIFTS))
         check_real(self, "lam", 0.0, 1e3, low_open=True)
         check_real(self, "alpha", 0.0, 1e6, low_open=True)
         check_real(self, "angle_threshold", 0.0, 180.0)

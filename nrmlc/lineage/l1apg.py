@@ -102,8 +102,9 @@ _BATCH = 48
 
 
 @dataclass(frozen=True)
-class L1APGParams:
-    """L1-APG's parameters (the OTB benchmark's ``paraConfig_L1_APG.m`` and ``L1TrackingBPR_APGup.m``)."""
+class TemplateTrackerParams:
+    """What L1-APG, L1 and MTT share: particles, templates and the sampling's deviations (their
+    MATLAB's ``sz_T``, ``nT``, ``rel_std_afnv``); each tracker's group sets its own values."""
 
     n_particles: int = 600
     #: Template rows and columns (``sz_T``).
@@ -113,6 +114,18 @@ class L1APGParams:
     #: Relative deviations of the sampling (``rel_std_afnv``): log a11, a12, a21, log a22, then the
     #: row and column translation; all but the first and fourth are multiplied by the state's scale.
     affine_sigma: tuple = (0.005, 0.0005, 0.0005, 0.005, 4.0, 4.0)
+
+    def _check_shared(self, min_particles: int, max_templates: int) -> None:
+        check_integer(self, "n_particles", min_particles, 100_000)
+        check_integer(self, "n_templates", 1, max_templates)
+        check_template_size(self)
+        check_affine_sigma(self)
+
+
+@dataclass(frozen=True)
+class L1APGParams(TemplateTrackerParams):
+    """L1-APG's parameters (the OTB benchmark's ``paraConfig_L1_APG.m`` and ``L1TrackingBPR_APGup.m``)."""
+
     #: ``lambda(1)``: the weight on the target templates' coefficients.
     lambda_template: float = 0.01
     #: ``lambda(2)``: the l1 weight on the trivial templates' coefficients.
@@ -137,12 +150,9 @@ class L1APGParams:
     occlusion_frames: int = 5
 
     def __post_init__(self) -> None:
-        check_integer(self, "n_particles", 2, 100_000)
-        check_integer(self, "n_templates", 1, 100)
+        self._check_shared(2, 100)
         check_integer(self, "max_iter", 0, 10_000)
         check_integer(self, "occlusion_frames", 0, 1_000_000)
-        check_template_size(self)
-        check_affine_sigma(self)
         check_real(self, "lambda_template", 0.0, 1e3)
         check_real(self, "lambda_trivial", 0.0, 1e3)
         check_real(self, "mu", 0.0, 1e3)

@@ -92,28 +92,21 @@ from dataclasses import dataclass
 import numpy as np
 
 from nrmlc.errors import ParameterError
-from nrmlc.lineage.checks import check_affine_sigma, check_integer, check_real, check_template_size
+from nrmlc.lineage.checks import check_integer, check_real
 from nrmlc.lineage.l1 import TEMPLATE_SHIFTS, images_angle, normalize_weights
-from nrmlc.lineage.l1apg import corners_to_state, crop_patches, draw_states, gray_levels, resample_states, whiten
+from nrmlc.lineage.l1apg import (TINY, TemplateTrackerParams, corners_to_state, crop_patches, draw_states,
+                                 gray_levels, resample_states, whiten)
 from nrmlc.lineage.l21 import l21_apg
 from nrmlc.lineage.l21 import warm_up as _warm_up_l21
 from nrmlc.workbench.otb_results import l1_affine_boxes
 
-#: The constant ``gly_zmuv.m`` adds to the standard deviation and ``normalizeTemplates.m`` to the norm.
-TINY = 1e-14
 
 @dataclass(frozen=True)
-class MTTParams:
-    """MTT's parameters (the OTB benchmark's ``paraConfig_MTT.m``; module docstring for the rest)."""
+class MTTParams(TemplateTrackerParams):
+    """MTT's parameters (the OTB benchmark's ``paraConfig_MTT.m``; module docstring for the rest;
+    the shared fields: :class:`~nrmlc.lineage.l1apg.TemplateTrackerParams`, the templates being
+    the first ``n_templates`` of ``InitTemplates.m``'s ten)."""
 
-    n_particles: int = 600
-    #: Template rows and columns (``sz_T``).
-    template_size: tuple = (32, 32)
-    #: Target templates: the first ``n`` of ``InitTemplates.m``'s ten.
-    n_templates: int = 10
-    #: Relative deviations of the sampling (``rel_std_afnv``): log a11, a12, a21, log a22, then the
-    #: row and column translation; all but the first and fourth are multiplied by the state's scale.
-    affine_sigma: tuple = (0.005, 0.0005, 0.0005, 0.005, 4.0, 4.0)
     #: ``lambda``: the weight of the l2,1 norm.
     lam: float = 0.01
     #: ``eta``: the APG's step.
@@ -131,11 +124,8 @@ class MTTParams:
     max_weight: float = 0.3
 
     def __post_init__(self) -> None:
-        check_integer(self, "n_particles", 1, 100_000)
-        check_integer(self, "n_templates", 1, len(TEMPLATE_SHIFTS))
+        self._check_shared(1, len(TEMPLATE_SHIFTS))
         check_integer(self, "max_iter", 0, 100_000)
-        check_template_size(self)
-        check_affine_sigma(self)
         check_real(self, "lam", 0.0, 1e3)
         check_real(self, "eta", 0.0, 1e3, low_open=True)
         check_real(self, "objective_tolerance", 0.0, 1.0)
