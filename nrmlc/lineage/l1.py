@@ -92,7 +92,7 @@ from nrmlc.config import NUMBA_FLAGS, PARALLEL_FLAGS
 from nrmlc.errors import ParameterError
 from nrmlc.lineage.checks import (check_real, check_targets_and_signals)
 from nrmlc.kernels.checks import check_nonnegative_real
-from nrmlc.lineage.l1apg import (TemplateTrackerParams, box_corners, corners_to_state, crop_patches, draw_states,
+from nrmlc.lineage.l1apg import (TemplateTracker, TemplateTrackerParams, box_corners, corners_to_state, crop_patches, draw_states,
                                  gray_levels, resample_states, whiten)
 from nrmlc.lineage.lasso import SPAMS_RIDGE
 from nrmlc.workbench.otb_results import l1_affine_boxes
@@ -646,27 +646,16 @@ def _zmuv_unit(patches: np.ndarray) -> np.ndarray:
     return out
 
 
-class L1Tracker:
-    """L1 with ``init(frame, box)`` and ``update(frame) -> box`` (boxes 1-based ``x, y, w, h``).
-
-    Parameters
-    ----------
-    params : L1Params, optional
-    seed : int
-        Seeds the particles' noise (the templates need none).
-    """
+class L1Tracker(TemplateTracker):
+    """L1 with ``init(frame, box)`` and ``update(frame) -> box`` (boxes 1-based ``x, y, w, h``);
+    :class:`~nrmlc.lineage.l1apg.TemplateTracker`'s parameters, ``L1Params``; the seed draws the
+    particles' noise (the templates need none)."""
 
     name = "L1"
-
-    def __init__(self, params: L1Params | None = None, seed: int = 0) -> None:
-        self.params = params or L1Params()
-        self.rng = np.random.default_rng(seed)
-        warm_up()
-        crop_patches(np.zeros((2, 2)), np.zeros((1, 6)), (1, 1))
-        p = self.params
-        self._patches = np.empty((p.n_particles,) + tuple(p.template_size))
-        #: Problems the solver's step cap stopped, over the run (expected 0).
-        self.unconverged = 0
+    params_class = L1Params
+    warm_up = staticmethod(warm_up)
+    #: Problems the solver's step cap stopped, over the run (expected 0).
+    unconverged = 0
 
     def init(self, frame: np.ndarray, box) -> None:
         """Start on ``frame`` ((H, W, 3) BGR or (H, W) uint8) at ``box``, then track that frame

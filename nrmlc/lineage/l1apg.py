@@ -446,25 +446,41 @@ def largest_occluded_region(trivial: np.ndarray, level: float) -> int | None:
     return int(np.bincount(labels.ravel())[1:].max())
 
 
-class L1APGTracker:
-    """L1-APG with ``init(frame, box)`` and ``update(frame) -> box`` (boxes 1-based ``x, y, w, h``).
+class TemplateTracker:
+    """What L1-APG, L1 and MTT set up alike: parameters, a seeded generator, compiled kernels
+    (their solver's and the crop's, loaded before the first frame) and the crop's buffer.
 
     Parameters
     ----------
-    params : L1APGParams, optional
+    params : TemplateTrackerParams, optional
+        Of the subclass's :attr:`params_class` (default: its defaults).
     seed : int
-        Seeds the templates' corner noise and the particles' noise.
+        Seeds every random draw of the run.
     """
 
-    name = "L1APG"
+    params_class = TemplateTrackerParams
 
-    def __init__(self, params: L1APGParams | None = None, seed: int = 0) -> None:
-        self.params = params or L1APGParams()
+    def __init__(self, params: TemplateTrackerParams | None = None, seed: int = 0) -> None:
+        self.params = params or self.params_class()
         self.rng = np.random.default_rng(seed)
-        _warm_up_apg()
+        self.warm_up()
         crop_patches(np.zeros((2, 2)), np.zeros((1, 6)), (1, 1))
         p = self.params
         self._patches = np.empty((p.n_particles,) + tuple(p.template_size))
+
+    @staticmethod
+    def warm_up() -> None:
+        """Load the solver's compiled kernels."""
+
+
+class L1APGTracker(TemplateTracker):
+    """L1-APG with ``init(frame, box)`` and ``update(frame) -> box`` (boxes 1-based ``x, y, w, h``);
+    :class:`TemplateTracker`'s parameters, ``L1APGParams``; the seed draws the templates' corner
+    noise and the particles' noise."""
+
+    name = "L1APG"
+    params_class = L1APGParams
+    warm_up = staticmethod(_warm_up_apg)
 
     def init(self, frame: np.ndarray, box) -> None:
         """Start on ``frame`` ((H, W, 3) BGR or (H, W) uint8) at ``box``."""

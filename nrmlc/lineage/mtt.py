@@ -94,7 +94,7 @@ import numpy as np
 from nrmlc.errors import ParameterError
 from nrmlc.lineage.checks import check_integer, check_real
 from nrmlc.lineage.l1 import TEMPLATE_SHIFTS, images_angle, normalize_weights
-from nrmlc.lineage.l1apg import (TINY, TemplateTrackerParams, corners_to_state, crop_patches, draw_states,
+from nrmlc.lineage.l1apg import (TINY, TemplateTracker, TemplateTrackerParams, corners_to_state, crop_patches, draw_states,
                                  gray_levels, resample_states, whiten)
 from nrmlc.lineage.l21 import l21_apg
 from nrmlc.lineage.l21 import warm_up as _warm_up_l21
@@ -150,27 +150,16 @@ def box_corners(box) -> np.ndarray:
     return np.array([[y, y + h, y], [x, x, x + w]])
 
 
-class MTTTracker:
+class MTTTracker(TemplateTracker):
     """MTT (the L21 tracker) with ``init(frame, box)`` and ``update(frame) -> box`` (boxes 1-based
-    ``x, y, w, h``).
-
-    Parameters
-    ----------
-    params : MTTParams, optional
-    seed : int
-        Seeds the particles' noise.
-    """
+    ``x, y, w, h``); :class:`~nrmlc.lineage.l1apg.TemplateTracker`'s parameters, ``MTTParams``; the
+    seed draws the particles' noise."""
 
     name = "MTT"
-
-    def __init__(self, params: MTTParams | None = None, seed: int = 0) -> None:
-        self.params = params or MTTParams()
-        self.rng = np.random.default_rng(seed)
-        _warm_up_l21()
-        crop_patches(np.zeros((2, 2)), np.zeros((1, 6)), (1, 1))
-        p = self.params
-        self._patches = np.empty((p.n_particles,) + tuple(p.template_size))
-        self.last_steps = 0
+    params_class = MTTParams
+    warm_up = staticmethod(_warm_up_l21)
+    #: APG steps of the last frame.
+    last_steps = 0
 
     def init(self, frame: np.ndarray, box) -> None:
         """Start on ``frame`` ((H, W, 3) BGR or (H, W) uint8) at ``box``."""
