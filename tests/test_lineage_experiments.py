@@ -48,7 +48,7 @@ def test_versus_runs_every_tracker_and_writes_the_table(data_root, tmp_path):
     result = versus.run([data_root], tmp_path / "out", seeds=(0, 1), groups=groups, cache=tmp_path / "cache",
                         jobs=1, max_frames=6)
     columns = result["columns"]
-    assert list(columns) == ["NRMLC", "NRMLC (paper preset)", "IVT", "ASLA"]
+    assert list(columns) == ["NRMLC", "NRMLC (paper preset)", "IVT", "ASLA", "L1", "L1APG"]
     for column in columns.values():
         assert set(column) == {"Walker", "Runner"} and all(len(v) == 2 for v in column.values())
         assert all(0 <= x <= 1 for v in column.values() for x in v)

@@ -1,5 +1,6 @@
-"""Does NRMLC beat its lineage? NRMLC (the default and the ``paper`` preset) against the live IVT and
-ASLA of :mod:`nrmlc.lineage`, on the same targets, in the same harness, with the same seeds.
+"""Does NRMLC beat its lineage? NRMLC (the default and the ``paper`` preset) against the live IVT,
+ASLA, L1 and L1-APG of :mod:`nrmlc.lineage`, on the same targets, in the same harness, with the same
+seeds. MTT is left out until its one departure is checked on development video (docs/DEVIATIONS.md).
 
 The paper's central claim is that NRMLC beats the sparse and subspace trackers it comes from; its
 Tables I and II print those trackers' numbers, some of them doubtful (Table II's ASLA on Deer is
@@ -40,7 +41,7 @@ from nrmlc.workbench.trackers import ImportedTracker
 
 STEM = "lineage_versus"
 NRMLC_CONFIGURATIONS = {"NRMLC": "default", "NRMLC (paper preset)": "paper"}
-LINEAGE = {"IVT": "ivt", "ASLA": "asla"}
+LINEAGE = {"IVT": "ivt", "ASLA": "asla", "L1": "l1", "L1APG": "l1apg"}
 #: Differences of per-target means smaller than this are ties (rounding of equal scores).
 TIE = 1e-9
 GROUPS = {"A": DEVELOPMENT_A, "B": DEVELOPMENT_B, "paper's nine": PAPER_SEQUENCES}
