@@ -1,5 +1,5 @@
-"""The lineage's shared parts (affine states, the warp, incremental PCA), IVT, and how the
-workbench and the command line reach them."""
+"""The lineage's shared parts (affine states, IVT's warp and L1-APG's crop, incremental PCA), IVT,
+and how the workbench and the command line reach them."""
 from __future__ import annotations
 
 from pathlib import Path
@@ -14,9 +14,13 @@ from nrmlc.lineage import TRACKERS
 from nrmlc.lineage.affine import (box_to_geom, geom_to_matrix, matrix_to_box, matrix_to_geom, warp_patches,
                                   warp_patches_reference)
 from nrmlc.lineage.ivt import IVTParams, IVTTracker
+from nrmlc.lineage.l1apg import crop_patches, crop_patches_reference
 from nrmlc.lineage.subspace import Subspace
 from nrmlc.workbench.metrics import evaluate
 from nrmlc.workbench.trackers import ImportedTracker, track_init_update
+
+
+# --------------------------------------------------------------------------- affine states and IVT's warp
 
 
 def random_geoms(rng, n):
@@ -66,26 +70,84 @@ def test_an_unscaled_warp_copies_pixels():
     np.testing.assert_array_equal(patch, frame[15 - 4: 15 + 4, 20 - 3: 20 + 3])
 
 
-def test_warp_is_the_same_for_any_thread_count():
-    rng = np.random.default_rng(3)
-    frame = rng.random((60, 80))
-    matrices = np.ascontiguousarray(geom_to_matrix(random_geoms(rng, 101)))
+# --------------------------------------------------------------------------- L1-APG's crop (IMGaffine_c)
+
+
+def random_crop_states(rng, n):
+    """``n`` states (a11, a12, a21, a22, tr, tc) of the crop, moved across and around a 40 x 50 frame."""
+    return np.column_stack([rng.uniform(0.3, 3, n), rng.uniform(-0.5, 0.5, n), rng.uniform(-0.5, 0.5, n),
+                            rng.uniform(0.3, 3, n), rng.uniform(-10, 40, n), rng.uniform(-10, 50, n)])
+
+
+def test_crop_matches_its_reference_inside_across_and_outside_the_frame():
+    rng = np.random.default_rng(10)
+    frame = rng.integers(0, 256, (40, 50)).astype(np.float64)
+    states = random_crop_states(rng, 80)
+    states[:10, 4:] = [[200.0, 10.0]] * 10                      # wholly outside
+    states[10:20] = [0.5, 0.0, 0.0, 0.5, -3.0, 20.25]          # rows on halves, some negative: MATLAB's round
+    states[20:30] = [1.0, 0.0, 0.0, 1.0, 3.0, 50.0 - 10.0]     # up to the last column, which the mex excludes
+    states = np.ascontiguousarray(states)
+    patches, in_range = crop_patches(frame, states, (12, 10))
+    expected, expected_in_range = crop_patches_reference(frame, states, (12, 10))
+    np.testing.assert_array_equal(in_range, expected_in_range)
+    np.testing.assert_allclose(patches, expected, rtol=1e-13, atol=0)  # NaN where both are NaN
+    assert not in_range[:10].any() and np.isnan(patches[:10]).all()
+    assert in_range[10:30].all()
+
+
+def test_crop_of_a_translation_copies_pixels_and_fills_with_the_mean():
+    frame = np.arange(30 * 40, dtype=np.float64).reshape(30, 40)
+    # template (r, c) -> image (r + 5, c + 28), 1-based: columns 29..40, the last one outside
+    patches, in_range = crop_patches(frame, np.array([[1.0, 0, 0, 1.0, 5.0, 28.0]]), (8, 12))
+    inside = frame[5:13, 28:39]
+    np.testing.assert_array_equal(patches[0, :, :11], inside)
+    np.testing.assert_allclose(patches[0, :, 11], inside.mean(), rtol=1e-15)
+    assert in_range[0]
+
+
+def test_crop_rounds_halves_away_from_zero():
+    frame = np.arange(20 * 20, dtype=np.float64).reshape(20, 20)
+    # row 0.5 r + 2: r = 1 -> 2.5 -> 3, r = 3 -> 3.5 -> 4 (numpy's round would give 2 and 4)
+    patches, _ = crop_patches(frame, np.array([[0.5, 0, 0, 1.0, 2.0, 0.0]]), (4, 2))
+    np.testing.assert_array_equal(patches[0, :, 0], frame[[2, 2, 3, 3], 0])
+
+
+# --------------------------------------------------------------------------- both the warp and the crop
+
+
+def _warp_inputs(rng):
+    return rng.random((60, 80)), np.ascontiguousarray(geom_to_matrix(random_geoms(rng, 101)))
+
+
+def _crop_inputs(rng):
+    return rng.random((60, 80)) * 255, np.ascontiguousarray(random_crop_states(rng, 101))
+
+
+@pytest.mark.parametrize("patches", [warp_patches, crop_patches], ids=["warp", "crop"])
+@pytest.mark.parametrize("states, message", [(np.zeros((3, 5)), "6 columns"), (np.full((2, 6), np.nan), "finite"),
+                                             (np.zeros((2, 6), dtype=np.float32), "dtype")])
+def test_warp_and_crop_refuse_bad_states(patches, states, message):
+    with pytest.raises(ParameterError, match=message):
+        patches(np.zeros((10, 10)), states, (4, 4))
+
+
+@pytest.mark.parametrize("patches, seed, inputs", [(warp_patches, 3, _warp_inputs), (crop_patches, 11, _crop_inputs)],
+                         ids=["warp", "crop"])
+def test_warp_and_crop_are_the_same_for_any_thread_count(patches, seed, inputs):
+    frame, states = inputs(np.random.default_rng(seed))
     before = numba.get_num_threads()
     try:
         numba.set_num_threads(1)
-        one = warp_patches(frame, matrices, (32, 32))
+        one = patches(frame, states, (32, 32))
         numba.set_num_threads(numba.config.NUMBA_NUM_THREADS)
-        many = warp_patches(frame, matrices, (32, 32))
+        many = patches(frame, states, (32, 32))
     finally:
         numba.set_num_threads(before)
-    np.testing.assert_array_equal(one, many)
+    # assert_equal goes into the crop's (patches, in_range) pair, each array compared exactly
+    np.testing.assert_equal(one, many)
 
 
-@pytest.mark.parametrize("matrices, message", [(np.zeros((3, 5)), "6 columns"), (np.full((2, 6), np.nan), "finite"),
-                                               (np.zeros((2, 6), dtype=np.float32), "dtype")])
-def test_warp_refuses_bad_states(matrices, message):
-    with pytest.raises(ParameterError, match=message):
-        warp_patches(np.zeros((10, 10)), matrices, (4, 4))
+# --------------------------------------------------------------------------- incremental PCA
 
 
 def test_incremental_pca_without_forgetting_is_batch_pca():
@@ -121,6 +183,9 @@ def test_residuals_are_distances_to_the_affine_subspace():
     centred = patches - subspace.mean
     projected = centred @ subspace.basis @ subspace.basis.T
     np.testing.assert_allclose(subspace.residuals(patches), ((centred - projected) ** 2).sum(axis=1))
+
+
+# --------------------------------------------------------------------------- IVT, the workbench, the command line
 
 
 @pytest.fixture(scope="module")

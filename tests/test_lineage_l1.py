@@ -1,18 +1,16 @@
-"""L1 (nrmlc.lineage.l1) and its lasso over target and trivial templates."""
+"""L1 (nrmlc.lineage.l1) and its lasso over target and trivial templates. Its bad box and
+frame and its tracking are checked with the other template trackers' in test_lineage_template_trackers.py."""
 import numba
 import numpy as np
 import pytest
 
 import nrmlc.lineage.l1 as l1
-from nrmlc.data import SyntheticSequence, SyntheticSpec
 from nrmlc.errors import ParameterError
-from nrmlc.testing import lineage
 from nrmlc.lineage import TRACKERS
 from nrmlc.lineage.l1 import (TEMPLATE_SHIFTS, L1Params, L1Tracker, images_angle, normalize_weights,
                               trivial_lasso, trivial_lasso_reference)
 from nrmlc.lineage.l1apg import box_corners, corners_to_state
 from nrmlc.lineage.lasso import SPAMS_RIDGE, lasso_nonnegative
-from nrmlc.workbench.otb_results import l1_affine_boxes
 
 LAM = 0.01
 
@@ -211,48 +209,3 @@ def test_template_step_replaces_the_lightest_above_the_angle():
     tracker._update_templates(again[3] / np.linalg.norm(again[3]), coefficients)
     np.testing.assert_allclose(tracker.templates / np.linalg.norm(tracker.templates, axis=1, keepdims=True),
                                again / np.linalg.norm(again, axis=1, keepdims=True), atol=1e-12)
-
-
-def test_bad_box_and_frame():
-    tracker = L1Tracker(seed=0)
-    with pytest.raises(ParameterError, match="box must be"):
-        tracker.init(_frame(), [1, 2, 3])
-    with pytest.raises(ParameterError, match="constant gray"):
-        tracker.init(np.full((60, 80), 7, dtype=np.uint8), [10, 10, 20, 20])
-    with pytest.raises(ParameterError, match="frame must be"):
-        tracker.init(np.zeros((60, 80), dtype=np.float32), [10, 10, 20, 20])
-
-
-def _check_box(tracker, box):
-    # the box is the toolkit's of the state, and every lasso converged
-    np.testing.assert_array_equal(box, l1_affine_boxes(tracker.state[None], (12, 15))[0])
-    assert tracker.unconverged == 0
-
-
-@pytest.fixture(scope="module")
-def synthetic():
-    return SyntheticSequence(SyntheticSpec(name="l1", seed=1, n_frames=40))
-
-
-@pytest.fixture(scope="module")
-def tracked(synthetic):
-    return lineage.track(L1Tracker, synthetic, 40, on_box=_check_box)
-
-
-def test_tracks_a_moving_target(synthetic, tracked):
-    overlap, still = lineage.overlap_and_still(tracked, synthetic.groundtruth)
-    assert still < 0.2  # the target moves away from its first box
-    assert overlap > 0.65, (overlap, still)
-
-
-def test_same_seed_same_boxes(synthetic, tracked):
-    lineage.check_seeds(L1Tracker, synthetic, tracked, 15)
-
-
-def test_boxes_do_not_depend_on_the_thread_count(synthetic, tracked):
-    lineage.check_thread_counts(L1Tracker, synthetic, tracked, 15)
-
-
-def test_car4_follows_the_car_where_a_still_box_loses_it(real_data_root):
-    """:func:`nrmlc.testing.lineage.check_car4`. Seeds 0-4 gave 0.74-0.87 there."""
-    lineage.check_car4(L1Tracker, real_data_root, 0.65, on_box=_check_box)

@@ -1,17 +1,17 @@
-"""L1-APG (nrmlc.lineage.l1apg) and its APG solver (nrmlc.lineage.apg)."""
+"""L1-APG (nrmlc.lineage.l1apg) and its APG solver (nrmlc.lineage.apg). Its crop is
+checked in test_lineage.py; its bad box and frame and its tracking with the other template trackers' in
+test_lineage_template_trackers.py."""
 import numba
 import numpy as np
 import pytest
 
 import nrmlc.lineage.l1apg as l1apg
-from nrmlc.data import SyntheticSequence, SyntheticSpec
 from nrmlc.errors import ParameterError
 from nrmlc.testing import lineage
 from nrmlc.lineage import TRACKERS
 from nrmlc.lineage.apg import apg_lasso, apg_lasso_reference
-from nrmlc.lineage.l1apg import (L1APGParams, L1APGTracker, box_corners, corners_to_state, crop_patches,
-                                 crop_patches_reference, images_angle, largest_occluded_region, resample_states,
-                                 whiten)
+from nrmlc.lineage.l1apg import (L1APGParams, L1APGTracker, box_corners, corners_to_state, images_angle,
+                                 largest_occluded_region, resample_states, whiten)
 from nrmlc.workbench.otb_results import l1_affine_boxes
 
 AUTHORS_LAMBDAS = (0.01, 0.001, 1.0)
@@ -138,70 +138,6 @@ def test_apg_bad_input():
         assert "\n" not in str(info.value)
 
 
-# --------------------------------------------------------------------------- the crop (IMGaffine_c)
-
-
-def _states(rng, n):
-    return np.column_stack([rng.uniform(0.3, 3, n), rng.uniform(-0.5, 0.5, n), rng.uniform(-0.5, 0.5, n),
-                            rng.uniform(0.3, 3, n), rng.uniform(-10, 40, n), rng.uniform(-10, 50, n)])
-
-
-def test_crop_matches_its_reference_inside_across_and_outside_the_frame():
-    rng = np.random.default_rng(10)
-    frame = rng.integers(0, 256, (40, 50)).astype(np.float64)
-    states = _states(rng, 80)
-    states[:10, 4:] = [[200.0, 10.0]] * 10                      # wholly outside
-    states[10:20] = [0.5, 0.0, 0.0, 0.5, -3.0, 20.25]          # rows on halves, some negative: MATLAB's round
-    states[20:30] = [1.0, 0.0, 0.0, 1.0, 3.0, 50.0 - 10.0]     # up to the last column, which the mex excludes
-    states = np.ascontiguousarray(states)
-    patches, in_range = crop_patches(frame, states, (12, 10))
-    expected, expected_in_range = crop_patches_reference(frame, states, (12, 10))
-    np.testing.assert_array_equal(in_range, expected_in_range)
-    np.testing.assert_allclose(patches, expected, rtol=1e-13, atol=0)  # NaN where both are NaN
-    assert not in_range[:10].any() and np.isnan(patches[:10]).all()
-    assert in_range[10:30].all()
-
-
-def test_crop_of_a_translation_copies_pixels_and_fills_with_the_mean():
-    frame = np.arange(30 * 40, dtype=np.float64).reshape(30, 40)
-    # template (r, c) -> image (r + 5, c + 28), 1-based: columns 29..40, the last one outside
-    patches, in_range = crop_patches(frame, np.array([[1.0, 0, 0, 1.0, 5.0, 28.0]]), (8, 12))
-    inside = frame[5:13, 28:39]
-    np.testing.assert_array_equal(patches[0, :, :11], inside)
-    np.testing.assert_allclose(patches[0, :, 11], inside.mean(), rtol=1e-15)
-    assert in_range[0]
-
-
-def test_crop_rounds_halves_away_from_zero():
-    frame = np.arange(20 * 20, dtype=np.float64).reshape(20, 20)
-    # row 0.5 r + 2: r = 1 -> 2.5 -> 3, r = 3 -> 3.5 -> 4 (numpy's round would give 2 and 4)
-    patches, _ = crop_patches(frame, np.array([[0.5, 0, 0, 1.0, 2.0, 0.0]]), (4, 2))
-    np.testing.assert_array_equal(patches[0, :, 0], frame[[2, 2, 3, 3], 0])
-
-
-@pytest.mark.parametrize("states, message", [(np.zeros((3, 5)), "6 columns"), (np.full((2, 6), np.nan), "finite"),
-                                             (np.zeros((2, 6), dtype=np.float32), "dtype")])
-def test_crop_refuses_bad_states(states, message):
-    with pytest.raises(ParameterError, match=message):
-        crop_patches(np.zeros((10, 10)), states, (4, 4))
-
-
-def test_crop_is_the_same_for_any_thread_count():
-    rng = np.random.default_rng(11)
-    frame = rng.random((60, 80)) * 255
-    states = np.ascontiguousarray(_states(rng, 101))
-    before = numba.get_num_threads()
-    try:
-        numba.set_num_threads(1)
-        one = crop_patches(frame, states, (32, 32))
-        numba.set_num_threads(numba.config.NUMBA_NUM_THREADS)
-        many = crop_patches(frame, states, (32, 32))
-    finally:
-        numba.set_num_threads(before)
-    np.testing.assert_array_equal(one[0], many[0])
-    np.testing.assert_array_equal(one[1], many[1])
-
-
 # --------------------------------------------------------------------------- states, boxes, small steps
 
 
@@ -321,17 +257,6 @@ def test_registered():
 # --------------------------------------------------------------------------- the tracker's steps
 
 
-SMALL = L1APGParams(n_particles=40, template_size=(6, 5), n_templates=4)
-
-
-def _small_tracker(seed=0):
-    rng = np.random.default_rng(14)
-    frame = (rng.random((40, 50)) * 255).astype(np.uint8)
-    tracker = L1APGTracker(SMALL, seed=seed)
-    tracker.init(frame, (10, 12, 15, 18))
-    return tracker
-
-
 def _sequential_choice(tracker, candidates, in_range):
     """L1TrackingBPR_APGup.m's two stages one particle at a time, with the dense APGLASSOup.m."""
     p = tracker.params
@@ -366,7 +291,7 @@ def _sequential_choice(tracker, candidates, in_range):
 @pytest.mark.parametrize("batch", [1, 3, 48])
 def test_batched_coding_is_the_sequential_loop(monkeypatch, batch):
     monkeypatch.setattr(l1apg, "_BATCH", batch)
-    tracker = _small_tracker()
+    tracker = lineage.small_tracker(L1APGTracker)
     rng = np.random.default_rng(15)
     n, size = 40, 30
     noise = rng.uniform(0.05, 1.5, n)[:, None] * rng.standard_normal((n, size))
@@ -388,7 +313,7 @@ def test_batched_coding_is_the_sequential_loop(monkeypatch, batch):
 def test_coding_stops_where_the_bound_falls_below_the_threshold_and_skips_the_last():
     """The loop's rule: code in the bound's order while bound >= sum(likelihoods) / (2n - 1), and
     never the last particle of that order (``while n < n_sample``)."""
-    tracker = _small_tracker()
+    tracker = lineage.small_tracker(L1APGTracker)
     p = tracker.params
     n, size = p.n_particles, p.template_size[0] * p.template_size[1]
     rng = np.random.default_rng(17)
@@ -427,7 +352,7 @@ def test_coding_stops_where_the_bound_falls_below_the_threshold_and_skips_the_la
 
 
 def test_template_step_updates_or_pauses_as_the_code_does():
-    tracker = _small_tracker()
+    tracker = lineage.small_tracker(L1APGTracker)
     p = tracker.params
     size = p.template_size[0] * p.template_size[1]
     rng = np.random.default_rng(16)
@@ -468,51 +393,10 @@ def test_template_step_updates_or_pauses_as_the_code_does():
 
 
 def test_init_templates_are_whitened_unit_vectors_and_the_first_is_the_box():
-    tracker = _small_tracker()
+    tracker = lineage.small_tracker(L1APGTracker)
     p = tracker.params
     np.testing.assert_allclose(tracker.templates.mean(axis=1), 0, atol=1e-15)
     np.testing.assert_allclose(np.linalg.norm(tracker.templates, axis=1), 1, rtol=1e-14)
     assert len({row.tobytes() for row in tracker.templates}) == p.n_templates  # the corners were moved
     np.testing.assert_array_equal(tracker.box(), (10, 12, 15, 18))
     np.testing.assert_array_equal(tracker.samples, np.repeat(tracker.state[None], p.n_particles, axis=0))
-
-
-def test_bad_box_and_frame():
-    tracker = L1APGTracker(SMALL)
-    with pytest.raises(ParameterError, match="box"):
-        tracker.init(np.zeros((20, 20), dtype=np.uint8), (1, 1, 1, 5))
-    for frame in (np.zeros((20, 20, 2), dtype=np.uint8), np.zeros((20, 20), dtype=np.float32), np.zeros(20)):
-        with pytest.raises(ParameterError, match="frame"):
-            tracker.init(frame, (1, 1, 5, 5))
-
-
-# --------------------------------------------------------------------------- tracking
-
-
-@pytest.fixture(scope="module")
-def synthetic():
-    return SyntheticSequence(SyntheticSpec(name="l1apg", seed=1, n_frames=40))
-
-
-@pytest.fixture(scope="module")
-def tracked(synthetic):
-    return lineage.track(L1APGTracker, synthetic, 40)
-
-
-def test_tracks_a_moving_target(synthetic, tracked):
-    overlap, still = lineage.overlap_and_still(tracked, synthetic.groundtruth)
-    assert still < 0.2  # the target moves away from its first box
-    assert overlap > 0.65, (overlap, still)
-
-
-def test_same_seed_same_boxes(synthetic, tracked):
-    lineage.check_seeds(L1APGTracker, synthetic, tracked, 15)
-
-
-def test_boxes_do_not_depend_on_the_thread_count(synthetic, tracked):
-    lineage.check_thread_counts(L1APGTracker, synthetic, tracked, 15)
-
-
-def test_car4_follows_the_car_where_a_still_box_loses_it(real_data_root):
-    """:func:`nrmlc.testing.lineage.check_car4`. Seeds 0-4 gave 0.81-0.84 there."""
-    lineage.check_car4(L1APGTracker, real_data_root, 0.7)

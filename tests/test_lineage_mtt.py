@@ -1,9 +1,9 @@
-"""MTT (nrmlc.lineage.mtt) and its L21 APG solver (nrmlc.lineage.l21)."""
+"""MTT (nrmlc.lineage.mtt) and its L21 APG solver (nrmlc.lineage.l21). Its bad box and
+frame and its tracking are checked with the other template trackers' in test_lineage_template_trackers.py."""
 import numba
 import numpy as np
 import pytest
 
-from nrmlc.data import SyntheticSequence, SyntheticSpec
 from nrmlc.errors import ParameterError
 from nrmlc.testing import lineage
 from nrmlc.lineage import TRACKERS
@@ -211,19 +211,8 @@ def test_init_templates_are_init_templates_crops():
         np.testing.assert_allclose(template, expected / np.linalg.norm(expected), rtol=0, atol=1e-13)
 
 
-SMALL = MTTParams(n_particles=40, template_size=(6, 5), n_templates=4)
-
-
-def _small_tracker(seed=0):
-    rng = np.random.default_rng(14)
-    frame = (rng.random((40, 50)) * 255).astype(np.uint8)
-    tracker = MTTTracker(SMALL, seed=seed)
-    tracker.init(frame, (10, 12, 15, 18))
-    return tracker
-
-
 def test_init_templates_are_whitened_unit_vectors():
-    tracker = _small_tracker()
+    tracker = lineage.small_tracker(MTTTracker)
     np.testing.assert_allclose(tracker.templates.mean(axis=1), 0, atol=1e-15)
     np.testing.assert_allclose(np.linalg.norm(tracker.templates, axis=1), 1, rtol=1e-14)
     assert len({row.tobytes() for row in tracker.templates}) == 4
@@ -232,7 +221,7 @@ def test_init_templates_are_whitened_unit_vectors():
 
 
 def test_template_step_replaces_the_least_weighted_when_dissimilar():
-    tracker = _small_tracker()
+    tracker = lineage.small_tracker(MTTTracker)
     size = 30
     rng = np.random.default_rng(16)
     answer = rng.standard_normal(size)
@@ -252,44 +241,3 @@ def test_template_step_replaces_the_least_weighted_when_dissimilar():
     np.testing.assert_allclose(tracker.templates, templates, rtol=1e-13)
     np.testing.assert_allclose(tracker.weights, normalize_weights(before * np.exp([0.1, 0.8, 0.0, 0.0]), 0.3))
     np.testing.assert_allclose(np.linalg.norm(tracker.templates, axis=1), 1, rtol=1e-13)
-
-
-def test_bad_box_and_frame():
-    tracker = MTTTracker(SMALL)
-    with pytest.raises(ParameterError, match="box"):
-        tracker.init(np.zeros((20, 20), dtype=np.uint8), (1, 1, 1, 5))
-    for frame in (np.zeros((20, 20, 2), dtype=np.uint8), np.zeros((20, 20), dtype=np.float32), np.zeros(20)):
-        with pytest.raises(ParameterError, match="frame"):
-            tracker.init(frame, (1, 1, 5, 5))
-
-
-# --------------------------------------------------------------------------- tracking
-
-
-@pytest.fixture(scope="module")
-def synthetic():
-    return SyntheticSequence(SyntheticSpec(name="mtt", seed=1, n_frames=30))
-
-
-@pytest.fixture(scope="module")
-def tracked(synthetic):
-    return lineage.track(MTTTracker, synthetic, 30)
-
-
-def test_tracks_a_moving_target(synthetic, tracked):
-    overlap, still = lineage.overlap_and_still(tracked, synthetic.groundtruth)
-    assert still < 0.3  # the target moves away from its first box
-    assert overlap > 0.6, (overlap, still)
-
-
-def test_same_seed_same_boxes(synthetic, tracked):
-    lineage.check_seeds(MTTTracker, synthetic, tracked, 10)
-
-
-def test_boxes_do_not_depend_on_the_thread_count(synthetic, tracked):
-    lineage.check_thread_counts(MTTTracker, synthetic, tracked, 10)
-
-
-def test_car4_follows_the_car_where_a_still_box_loses_it(real_data_root):
-    """:func:`nrmlc.testing.lineage.check_car4`. Seeds 0 and 1 gave 0.83 there."""
-    lineage.check_car4(MTTTracker, real_data_root, 0.7)

@@ -1,6 +1,6 @@
 """The checks every lineage tracker's tests make (:mod:`nrmlc.lineage`): it follows a moving
 target, the same seed gives the same boxes, the thread count changes nothing, and it follows Car4
-where a still box loses the car."""
+where a still box loses the car; and the small L1-APG and MTT trackers that tests of single steps start from."""
 from __future__ import annotations
 
 from pathlib import Path
@@ -76,3 +76,19 @@ def check_car4(make, data_root: Path, floor: float, on_box=None) -> float:
     assert still < 0.45
     assert overlap > floor, (overlap, still)
     return overlap
+
+
+def small_params(tracker_class):
+    """Parameters of ``tracker_class`` (a :class:`~nrmlc.lineage.l1apg.TemplateTracker`) with 40
+    particles and four 6 x 5 templates, so that tests of single steps run quickly."""
+    return tracker_class.params_class(n_particles=40, template_size=(6, 5), n_templates=4)
+
+
+def small_tracker(tracker_class):
+    """A ``tracker_class`` of :func:`small_params`, seed 0, started at box (10, 12, 15, 18) of a
+    random 40 x 50 frame."""
+    rng = np.random.default_rng(14)
+    frame = (rng.random((40, 50)) * 255).astype(np.uint8)
+    tracker = tracker_class(small_params(tracker_class))
+    tracker.init(frame, (10, 12, 15, 18))
+    return tracker
