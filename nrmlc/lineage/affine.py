@@ -25,6 +25,8 @@ from numba import njit, prange
 from nrmlc.config import PARALLEL_FLAGS
 from nrmlc.errors import ParameterError
 from nrmlc.kernels.checks import check_array
+from nrmlc.lineage.checks import check_states, patch_buffer
+from nrmlc.workbench.otb_results import ivt_affine_boxes
 
 #: :data:`nrmlc.config.PARALLEL_FLAGS` without fastmath, for a kernel that must round as a MATLAB
 #: mex does: no fused multiply-add may move a coordinate across a half before it is rounded.
@@ -112,28 +114,9 @@ def box_to_geom(box, template_width: int, round_centre: bool) -> np.ndarray:
     return np.array([centre[0], centre[1], centre[2] / template_width, 0.0, centre[3] / centre[2], 0.0])
 
 
-def matrix_to_box(matrix, template_size) -> np.ndarray:
-    """The OTB toolkit's box of one matrix state (``calcRectCenter.m``): the floored images of the
-    template's corners ``(-w/2, -h/2)`` and ``(w/2, h/2)``.
-
-    Parameters
-    ----------
-    matrix : (n, 6) array_like
-    template_size : (2,) array_like
-        ``(w, h)``.
-
-    Returns
-    -------
-    (n, 4) float64
-        1-based ``x, y, w, h``.
-    """
-    p = np.asarray(matrix, dtype=np.float64).reshape(-1, 6)
-    w, h = (float(v) for v in np.asarray(template_size, dtype=np.float64).ravel()[:2])
-    x0 = np.floor(p[:, 0] - p[:, 2] * w / 2 - p[:, 3] * h / 2)
-    y0 = np.floor(p[:, 1] - p[:, 4] * w / 2 - p[:, 5] * h / 2)
-    x1 = np.floor(p[:, 0] + p[:, 2] * w / 2 + p[:, 3] * h / 2)
-    y1 = np.floor(p[:, 1] + p[:, 4] * w / 2 + p[:, 5] * h / 2)
-    return np.stack([x0, y0, x1 - x0, y1 - y0], axis=1)
+#: The OTB toolkit's box of matrix states (``calcRectCenter.m``), the one the benchmark's files are
+#: scored with: (n, 6) matrices and the template's ``(w, h)`` -> (n, 4) 1-based ``x, y, w, h``.
+matrix_to_box = ivt_affine_boxes
 
 
 @njit(**PARALLEL_FLAGS)
@@ -192,16 +175,9 @@ def warp_patches(frame: np.ndarray, matrices: np.ndarray, template_size, out: np
     (n, h, w) float64
     """
     check_array("frame", frame, np.float64, 2)
-    check_array("matrices", matrices, np.float64, 2)
-    if matrices.shape[1] != 6:
-        raise ParameterError(f"matrices must have 6 columns (tx, ty, a11, a12, a21, a22), got {matrices.shape[1]}")
-    if not np.isfinite(matrices).all():
-        raise ParameterError("matrices must be finite")
+    check_states("matrices", matrices, "tx, ty, a11, a12, a21, a22")
     h, w = (int(v) for v in template_size)
-    if out is None:
-        out = np.empty((matrices.shape[0], h, w), dtype=np.float64)
-    elif out.shape != (matrices.shape[0], h, w) or out.dtype != np.float64 or not out.flags.c_contiguous:
-        raise ParameterError(f"out must be a C-contiguous float64 array of shape {(matrices.shape[0], h, w)}")
+    out = patch_buffer(out, (matrices.shape[0], h, w))
     _warp_patches(frame, matrices, out)
     return out
 

@@ -63,3 +63,34 @@ def check_targets_and_signals(targets, signals) -> tuple[int, int]:
     check_finite("targets", targets)
     check_finite("signals", signals)
     return k, size
+
+
+def check_weight_cap(params, name: str) -> None:
+    """``params.<name>``, ``normalizeWeights.m``'s cap on a template's share of the weights, is in
+    ``(0, 1]`` and large enough for ``params.n_templates`` shares to sum to 1."""
+    check_real(params, name, 0.0, 1.0, low_open=True)
+    cap = getattr(params, name)
+    if cap * params.n_templates < 1.0:
+        raise ParameterError(f"{_where(params, name)} times n_templates must be >= 1 (weights sum to 1), "
+                             f"got {cap!r} x {params.n_templates}")
+
+
+def check_states(name: str, states, columns: str) -> None:
+    """``states`` (the argument ``name``): (n, 6) float64, C-contiguous and finite; ``columns``
+    names the six for the message."""
+    from nrmlc.kernels.checks import check_array
+
+    check_array(name, states, np.float64, 2)
+    if states.shape[1] != 6:
+        raise ParameterError(f"{name} must have 6 columns ({columns}), got {states.shape[1]}")
+    if not np.isfinite(states).all():
+        raise ParameterError(f"{name} must be finite")
+
+
+def patch_buffer(out, shape: tuple) -> np.ndarray:
+    """``out`` when it is a C-contiguous float64 array of ``shape``, a new one when it is None."""
+    if out is None:
+        return np.empty(shape, dtype=np.float64)
+    if out.shape != shape or out.dtype != np.float64 or not out.flags.c_contiguous:
+        raise ParameterError(f"out must be a C-contiguous float64 array of shape {shape}")
+    return out

@@ -90,15 +90,14 @@ from numba import njit, prange
 
 from nrmlc.config import NUMBA_FLAGS, PARALLEL_FLAGS
 from nrmlc.errors import ParameterError
-from nrmlc.lineage.checks import (check_real, check_targets_and_signals)
+from nrmlc.lineage.checks import check_real, check_targets_and_signals, check_weight_cap
 from nrmlc.kernels.checks import check_nonnegative_real
-from nrmlc.lineage.l1apg import (TemplateTracker, TemplateTrackerParams, box_corners, corners_to_state, crop_patches, draw_states,
-                                 gray_levels, resample_states, whiten)
+from nrmlc.lineage.l1apg import (TemplateTracker, TemplateTrackerParams, box_corners, corners_to_state, crop_patches, gray_levels, resample_states, whiten)
 from nrmlc.lineage.lasso import SPAMS_RIDGE
-from nrmlc.workbench.otb_results import l1_affine_boxes
+from nrmlc.lineage.triangular import cholesky_solve
 
 __all__ = ["L1Params", "L1Tracker", "trivial_lasso", "trivial_lasso_reference", "images_angle",
-           "normalize_weights", "TEMPLATE_SHIFTS"]
+           "normalize_weights", "shifted_template_states", "TEMPLATE_SHIFTS"]
 
 #: ``InitTemplates.m``'s corner moves of the ten templates, in pixels: (row, column) of each of
 #: the corners top-left, bottom-left, top-right.
@@ -114,6 +113,14 @@ TEMPLATE_SHIFTS = np.array([
     [[0, 0, 0], [0, -1, 0]],
     [[0, 0, 0], [0, 1, 0]],
 ], dtype=np.float64)
+
+
+
+def shifted_template_states(corners: np.ndarray, n_templates: int, template_size) -> np.ndarray:
+    """``InitTemplates.m``'s states: the first ``n_templates`` of :data:`TEMPLATE_SHIFTS` applied to
+    the (2, 3) ``corners``; (n_templates, 6) float64."""
+    return np.array([corners_to_state(corners + shift, template_size) for shift in TEMPLATE_SHIFTS[:n_templates]])
+
 
 #: ``gly_zmuv.m`` adds this to the standard deviation, ``normalizeTemplates.m`` to the norm.
 TINY = 1e-14
@@ -157,10 +164,7 @@ class L1Params(TemplateTrackerParams):
         check_real(self, "lam", 0.0, 1e3, low_open=True)
         check_real(self, "alpha", 0.0, 1e6, low_open=True)
         check_real(self, "angle_threshold", 0.0, 180.0)
-        check_real(self, "weight_cap", 0.0, 1.0, low_open=True)
-        if self.weight_cap * self.n_templates < 1.0:
-            raise ParameterError(f"L1Params.weight_cap times n_templates must be >= 1 (weights sum to 1), "
-                                 f"got {self.weight_cap!r} x {self.n_templates}")
+        check_weight_cap(self, "weight_cap")
 
 
 # ------------------------------------------------------------------------------------------------
@@ -299,15 +303,8 @@ def _solve_problem(targets, signal, lam, ridge, a, e, k_work, n_work, hessian, f
             if not good:
                 break
             for p in range(m):
-                total = -pg[free[p]]
-                for t in range(p):
-                    total -= hessian[p, t] * column[t]
-                column[p] = total / hessian[p, p]
-            for p in range(m - 1, -1, -1):
-                total = column[p]
-                for t in range(p + 1, m):
-                    total -= hessian[t, p] * column[t]
-                column[p] = total / hessian[p, p]
+                column[p] = -pg[free[p]]
+            cholesky_solve(hessian, m, column)
             dropped = False
             for p in range(m):
                 j = free[p]
@@ -661,13 +658,9 @@ class L1Tracker(TemplateTracker):
         """Start on ``frame`` ((H, W, 3) BGR or (H, W) uint8) at ``box``, then track that frame
         once, as the release's loop does (the box of this frame stays ``box``)."""
         p = self.params
-        box = np.asarray(box, dtype=np.float64).ravel()
-        if box.size != 4 or not np.isfinite(box).all() or box[2] < 2 or box[3] < 2:
-            raise ParameterError(f"box must be 4 finite numbers x, y, w, h with w, h >= 2, got {box.tolist()}")
-        gray = gray_levels(frame)
+        box, gray = self._start(frame, box)
         corners = box_corners(box)
-        states = np.array([corners_to_state(corners + shift, p.template_size)
-                           for shift in TEMPLATE_SHIFTS[:p.n_templates]])
+        states = shifted_template_states(corners, p.n_templates, p.template_size)
         patches, in_range = crop_patches(gray, states, p.template_size)
         if not in_range.all():
             raise ParameterError(f"box {box.tolist()} must overlap the frame")
@@ -688,16 +681,10 @@ class L1Tracker(TemplateTracker):
         self._step(gray_levels(frame))
         return self.box()
 
-    def box(self) -> np.ndarray:
-        """The toolkit's box of the current state (``L1Aff``, ``tmplsize`` the template size), (4,) float64."""
-        return l1_affine_boxes(self.state[None], self.params.template_size)[0]
-
     def _step(self, gray: np.ndarray) -> None:
         """One pass of ``L1Tracking_release.m``'s loop on a gray frame (module docstring)."""
         p = self.params
-        scale = np.sqrt(np.sum(self.state[:4] ** 2) / 2)
-        sigma = np.asarray(p.affine_sigma, dtype=np.float64) * np.array([1.0, scale, scale, 1.0, scale, scale])
-        self.samples = draw_states(self.samples, sigma, self.rng)
+        self._draw_particles()
         patches, in_range = crop_patches(gray, self.samples, p.template_size, out=self._patches)
         candidates = patches.reshape(p.n_particles, -1)
         candidates[~in_range] = 0.0  # IMGaffine_r.m returns zeros for a patch wholly outside

@@ -83,7 +83,8 @@ from numba import njit, prange
 from scipy import ndimage
 
 from nrmlc.errors import ParameterError
-from nrmlc.lineage.checks import check_affine_sigma, check_integer, check_real, check_template_size
+from nrmlc.lineage.checks import (check_affine_sigma, check_integer, check_real, check_states, check_template_size,
+                                  patch_buffer)
 from nrmlc.kernels.checks import check_array
 from nrmlc.lineage.affine import EXACT_PARALLEL_FLAGS, gray_frame
 from nrmlc.lineage.apg import apg_lasso
@@ -293,19 +294,11 @@ def crop_patches(frame: np.ndarray, states: np.ndarray, template_size, out: np.n
     in_range : (n,) bool
     """
     check_array("frame", frame, np.float64, 2)
-    check_array("states", states, np.float64, 2)
-    if states.shape[1] != 6:
-        raise ParameterError(f"states must have 6 columns (a11, a12, a21, a22, tr, tc), got {states.shape[1]}")
-    if not np.isfinite(states).all():
-        raise ParameterError("states must be finite")
+    check_states("states", states, "a11, a12, a21, a22, tr, tc")
     if not np.isfinite(frame).all():
         raise ParameterError("frame must be finite")
     rows, cols = (int(v) for v in template_size)
-    shape = (states.shape[0], rows, cols)
-    if out is None:
-        out = np.empty(shape, dtype=np.float64)
-    elif out.shape != shape or out.dtype != np.float64 or not out.flags.c_contiguous:
-        raise ParameterError(f"out must be a C-contiguous float64 array of shape {shape}")
+    out = patch_buffer(out, (states.shape[0], rows, cols))
     in_range = np.empty(states.shape[0], dtype=np.bool_)
     _crop_patches(frame, states, out, in_range)
     return out, in_range
@@ -472,6 +465,24 @@ class TemplateTracker:
     def warm_up() -> None:
         """Load the solver's compiled kernels."""
 
+    def _start(self, frame: np.ndarray, box) -> tuple[np.ndarray, np.ndarray]:
+        """What every ``init`` begins with: ``box`` checked, as (4,) float64, and ``frame``'s gray levels."""
+        box = np.asarray(box, dtype=np.float64).ravel()
+        if box.size != 4 or not np.isfinite(box).all() or box[2] < 2 or box[3] < 2:
+            raise ParameterError(f"box must be 4 finite numbers x, y, w, h with w, h >= 2, got {box.tolist()}")
+        return box, gray_levels(frame)
+
+    def _draw_particles(self) -> None:
+        """Move every particle by the affine noise (``rel_std_afnv``), the shear and translation
+        deviations scaled by the state's scale."""
+        scale = np.sqrt(np.sum(self.state[:4] ** 2) / 2)
+        sigma = np.asarray(self.params.affine_sigma, dtype=np.float64) * np.array([1.0, scale, scale, 1.0, scale, scale])
+        self.samples = draw_states(self.samples, sigma, self.rng)
+
+    def box(self) -> np.ndarray:
+        """The toolkit's box of the current state (``L1Aff``, ``tmplsize`` the template size), (4,) float64."""
+        return l1_affine_boxes(self.state[None], self.params.template_size)[0]
+
 
 class L1APGTracker(TemplateTracker):
     """L1-APG with ``init(frame, box)`` and ``update(frame) -> box`` (boxes 1-based ``x, y, w, h``);
@@ -485,10 +496,7 @@ class L1APGTracker(TemplateTracker):
     def init(self, frame: np.ndarray, box) -> None:
         """Start on ``frame`` ((H, W, 3) BGR or (H, W) uint8) at ``box``."""
         p = self.params
-        box = np.asarray(box, dtype=np.float64).ravel()
-        if box.size != 4 or not np.isfinite(box).all() or box[2] < 2 or box[3] < 2:
-            raise ParameterError(f"box must be 4 finite numbers x, y, w, h with w, h >= 2, got {box.tolist()}")
-        gray = gray_levels(frame)
+        box, gray = self._start(frame, box)
         corners = box_corners(box)
         states = [corners_to_state(corners, p.template_size)]
         for _ in range(1, p.n_templates):
@@ -521,9 +529,7 @@ class L1APGTracker(TemplateTracker):
         """Track into ``frame``; the new box, (4,) float64."""
         p = self.params
         gray = gray_levels(frame)
-        scale = np.sqrt(np.sum(self.state[:4] ** 2) / 2)
-        sigma = np.asarray(p.affine_sigma, dtype=np.float64) * np.array([1.0, scale, scale, 1.0, scale, scale])
-        self.samples = draw_states(self.samples, sigma, self.rng)
+        self._draw_particles()
         patches, in_range = crop_patches(gray, self.samples, p.template_size, out=self._patches)
         candidates = patches.reshape(p.n_particles, -1)
         with np.errstate(invalid="ignore"):
@@ -539,10 +545,6 @@ class L1APGTracker(TemplateTracker):
         self.samples = resample_states(self.samples, likelihoods, self.state)
         self._update_templates(candidates[best], target_coefficients[:p.n_templates], trivial_coefficients)
         return self.box()
-
-    def box(self) -> np.ndarray:
-        """The toolkit's box of the current state (``L1Aff``, ``tmplsize`` the template size), (4,) float64."""
-        return l1_affine_boxes(self.state[None], self.params.template_size)[0]
 
     def _code(self, candidates: np.ndarray, in_range: np.ndarray):
         """``L1TrackingBPR_APGup.m``'s two stages: the bound, then the coding in its order until

@@ -41,6 +41,7 @@ from numba import njit, prange
 from nrmlc.config import NUMBA_FLAGS, PARALLEL_FLAGS
 from nrmlc.errors import ParameterError
 from nrmlc.kernels.checks import check_array, check_finite, check_nonnegative_real
+from nrmlc.lineage.triangular import cholesky_solve, forward_substitute
 
 __all__ = ["SPAMS_RIDGE", "lasso_nonnegative", "lasso_nonnegative_gram", "lasso_objective",
            "lasso_nonnegative_reference"]
@@ -74,10 +75,8 @@ def _append_atom(gram, members, k, atom, factor, column):
     """Add ``atom`` as row ``k`` of the Cholesky factor of ``gram[members, members]``; False (and
     nothing changed) when the atom is numerically in the span of the ``k`` active atoms."""
     for r in range(k):
-        total = gram[members[r], atom]
-        for c in range(r):
-            total -= factor[r, c] * column[c]
-        column[r] = total / factor[r, r]
+        column[r] = gram[members[r], atom]
+    forward_substitute(factor, k, column)
     pivot = gram[atom, atom]
     for r in range(k):
         pivot -= column[r] * column[r]
@@ -94,15 +93,8 @@ def _append_atom(gram, members, k, atom, factor, column):
 def _solve_active(factor, k, members, rhs, trial):
     """``trial[:k]`` = the minimiser on the active atoms, from ``L L' s = rhs[members]``."""
     for r in range(k):
-        total = rhs[members[r]]
-        for c in range(r):
-            total -= factor[r, c] * trial[c]
-        trial[r] = total / factor[r, r]
-    for r in range(k - 1, -1, -1):
-        total = trial[r]
-        for c in range(r + 1, k):
-            total -= factor[c, r] * trial[c]
-        trial[r] = total / factor[r, r]
+        trial[r] = rhs[members[r]]
+    cholesky_solve(factor, k, trial)
 
 
 @njit(**NUMBA_FLAGS)

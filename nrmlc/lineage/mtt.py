@@ -91,14 +91,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from nrmlc.errors import ParameterError
-from nrmlc.lineage.checks import check_integer, check_real
-from nrmlc.lineage.l1 import TEMPLATE_SHIFTS, images_angle, normalize_weights
-from nrmlc.lineage.l1apg import (TINY, TemplateTracker, TemplateTrackerParams, corners_to_state, crop_patches, draw_states,
-                                 gray_levels, resample_states, whiten)
+from nrmlc.lineage.checks import check_integer, check_real, check_weight_cap
+from nrmlc.lineage.l1 import TEMPLATE_SHIFTS, images_angle, normalize_weights, shifted_template_states
+from nrmlc.lineage.l1apg import (TINY, TemplateTracker, TemplateTrackerParams, crop_patches, gray_levels, resample_states, whiten)
 from nrmlc.lineage.l21 import l21_apg
 from nrmlc.lineage.l21 import warm_up as _warm_up_l21
-from nrmlc.workbench.otb_results import l1_affine_boxes
 
 
 @dataclass(frozen=True)
@@ -131,10 +128,7 @@ class MTTParams(TemplateTrackerParams):
         check_real(self, "objective_tolerance", 0.0, 1.0)
         check_real(self, "alpha", 0.0, 1e6, low_open=True)
         check_real(self, "theta", -1.0, 1.0)
-        check_real(self, "max_weight", 0.0, 1.0, low_open=True)
-        if self.max_weight * self.n_templates < 1.0:
-            raise ParameterError(f"MTTParams.max_weight times n_templates must be >= 1 (weights sum to 1), "
-                                 f"got {self.max_weight} x {self.n_templates}")
+        check_weight_cap(self, "max_weight")
 
 
 def box_corners(box) -> np.ndarray:
@@ -164,13 +158,9 @@ class MTTTracker(TemplateTracker):
     def init(self, frame: np.ndarray, box) -> None:
         """Start on ``frame`` ((H, W, 3) BGR or (H, W) uint8) at ``box``."""
         p = self.params
-        box = np.asarray(box, dtype=np.float64).ravel()
-        if box.size != 4 or not np.isfinite(box).all() or box[2] < 2 or box[3] < 2:
-            raise ParameterError(f"box must be 4 finite numbers x, y, w, h with w, h >= 2, got {box.tolist()}")
-        gray = gray_levels(frame)
+        box, gray = self._start(frame, box)
         corners = box_corners(box)
-        states = np.array([corners_to_state(corners + shift, p.template_size)
-                           for shift in TEMPLATE_SHIFTS[:p.n_templates]])
+        states = shifted_template_states(corners, p.n_templates, p.template_size)
         patches, in_range = crop_patches(gray, states, p.template_size)
         patches[~in_range] = 0.0  # IMGaffine_r.m's zeros
         templates = patches.reshape(p.n_templates, -1)
@@ -189,9 +179,7 @@ class MTTTracker(TemplateTracker):
         """Track into ``frame``; the new box, (4,) float64."""
         p = self.params
         gray = gray_levels(frame)
-        scale = np.sqrt(np.sum(self.state[:4] ** 2) / 2)
-        sigma = np.asarray(p.affine_sigma, dtype=np.float64) * np.array([1.0, scale, scale, 1.0, scale, scale])
-        self.samples = draw_states(self.samples, sigma, self.rng)
+        self._draw_particles()
         patches, in_range = crop_patches(gray, self.samples, p.template_size, out=self._patches)
         patches[~in_range] = 0.0
         candidates, _, _, _ = whiten(patches.reshape(p.n_particles, -1))
@@ -207,10 +195,6 @@ class MTTTracker(TemplateTracker):
         self.samples = resample_states(self.samples, likelihoods, self.state)
         self._update_templates(candidates[best].copy(), coefficients[best])
         return self.box()
-
-    def box(self) -> np.ndarray:
-        """The toolkit's box of the current state (``L1Aff``, ``tmplsize`` the template size), (4,) float64."""
-        return l1_affine_boxes(self.state[None], self.params.template_size)[0]
 
     def _likelihoods(self, candidates: np.ndarray, coefficients: np.ndarray, in_range: np.ndarray):
         """``exp(-alpha ||y - D z||^2)`` per particle; 0 for those outside the frame or of constant gray.
