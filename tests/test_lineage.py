@@ -304,3 +304,12 @@ def test_benchmark_runs_a_lineage_tracker_once_per_seed(sequence_folder, tmp_pat
     assert main([*argv[:3], str(tmp_path / "Again"), *argv[4:]]) == 0  # from the cache
     assert (tmp_path / "Again" / "synth-01.txt").read_text() == first
     assert len(list((tmp_path / "cache" / "imported").glob("*.npz"))) == 2
+
+
+@pytest.mark.parametrize("shape", [(20, 20, 2), (20, 20, 4), (20,), (2, 20, 20, 3)])
+def test_gray_frame_refuses_what_is_not_a_gray_or_bgr_frame(shape):
+    from nrmlc.lineage.affine import gray_frame
+
+    with pytest.raises(ParameterError, match=r"frame must be \(H, W\) or \(H, W, 3\)"):
+        gray_frame(np.zeros(shape, dtype=np.uint8), 255.0)
+    assert gray_frame(np.full((4, 5, 3), 51, dtype=np.uint8), 255.0) == pytest.approx(np.full((4, 5), 0.2))

@@ -228,8 +228,8 @@ def gray_frame(frame: np.ndarray, scale: float) -> np.ndarray:
     import cv2
 
     array = np.asarray(frame)
+    if not (array.ndim == 2 or (array.ndim == 3 and array.shape[2] == 3)):
+        raise ParameterError(f"frame must be (H, W) or (H, W, 3), got shape {array.shape}")
     if array.ndim == 3:
         array = cv2.cvtColor(array, cv2.COLOR_BGR2GRAY)
-    if array.ndim != 2:
-        raise ParameterError(f"frame must be (H, W) or (H, W, 3), got shape {array.shape}")
     return np.ascontiguousarray(array, dtype=np.float64) / scale
