@@ -277,13 +277,16 @@ def plot(data: dict, path) -> None:
     live_cols = _measured_columns(data)
     columns = [OURS] + live_cols + list(paper.PEERS)
     panels = data["curves"]
-    fig, axes = plt.subplots(len(panels), 2, figsize=(11, 4.6 * len(panels)), squeeze=False)
-    colours = plt.get_cmap("tab10")
+    # Legends stand right of their panels: with a dozen trackers inside, they covered the curves.
+    fig, axes = plt.subplots(len(panels), 2, figsize=(15, 4.6 * len(panels)), squeeze=False)
+    # One colour per tracker: its live run solid, its shipped file or printed number dashed.
+    families = list(dict.fromkeys(c.split(" (")[0] for c in columns))
+    colours = plt.get_cmap("tab10" if len(families) <= 10 else "tab20")
     for row, (label, (names, curves)) in enumerate(panels.items()):
         order = sorted(curves, key=lambda c: -curves[c]["auc"])
         for column in order:
             curve = curves[column]
-            style = dict(color=colours(columns.index(column) % 10), lw=2.4 if column == OURS else 1.5,
+            style = dict(color=colours(families.index(column.split(" (")[0]) % colours.N), lw=2.4 if column == OURS else 1.5,
                          ls="-" if column == OURS or column in live_cols else "--")
             cover = "" if len(curve["sequences"]) == curve["of"] else f" [{len(curve['sequences'])}/{curve['of']} seq.]"
             axes[row, 0].plot(SUCCESS_THRESHOLDS, curve["success"], label=f"{column} [{curve['auc']:.3f}]{cover}",
@@ -296,7 +299,7 @@ def plot(data: dict, path) -> None:
                          title=f"Precision plot, {label} ({len(names)})\nlegend: precision at 20 px")
         for ax in axes[row]:
             ax.grid(alpha=0.3)
-            ax.legend(fontsize=7, loc="lower left" if ax is axes[row, 0] else "lower right")
+            ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0.0)
     save_figure(fig, path, dpi=110)
 
 
