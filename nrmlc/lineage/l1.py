@@ -94,7 +94,7 @@ from nrmlc.lineage.checks import check_real, check_targets_and_signals, check_we
 from nrmlc.kernels.checks import check_nonnegative_real
 from nrmlc.lineage.l1apg import (TemplateTracker, TemplateTrackerParams, box_corners, corners_to_state, crop_patches, gray_levels, resample_states, whiten)
 from nrmlc.lineage.lasso import SPAMS_RIDGE
-from nrmlc.lineage.triangular import cholesky_solve
+from nrmlc.lineage.triangular import cholesky_pivot, cholesky_solve
 
 __all__ = ["L1Params", "L1Tracker", "trivial_lasso", "trivial_lasso_reference", "images_angle",
            "normalize_weights", "shifted_template_states", "TEMPLATE_SHIFTS"]
@@ -286,20 +286,12 @@ def _solve_problem(targets, signal, lam, ridge, a, e, k_work, n_work, hessian, f
                     if p == s:
                         total += ridge
                     hessian[p, s] = total
-            for p in range(m):  # Cholesky in place (lower triangle)
-                for s in range(p + 1):
-                    total = hessian[p, s]
-                    for t in range(s):
-                        total -= hessian[p, t] * hessian[s, t]
-                    if p == s:
-                        if not (total > 0.0):
-                            good = False
-                            break
-                        hessian[p, p] = math.sqrt(total)
-                    else:
-                        hessian[p, s] = total / hessian[s, s]
-                if not good:
+            for p in range(m):  # Cholesky in place (lower triangle), row by row
+                pivot = cholesky_pivot(hessian, p, hessian[p], hessian[p, p])
+                if not (pivot > 0.0):
+                    good = False
                     break
+                hessian[p, p] = math.sqrt(pivot)
             if not good:
                 break
             for p in range(m):

@@ -41,7 +41,7 @@ from numba import njit, prange
 from nrmlc.config import NUMBA_FLAGS, PARALLEL_FLAGS
 from nrmlc.errors import ParameterError
 from nrmlc.kernels.checks import check_array, check_finite, check_nonnegative_real
-from nrmlc.lineage.triangular import cholesky_solve, forward_substitute
+from nrmlc.lineage.triangular import cholesky_pivot, cholesky_solve
 
 __all__ = ["SPAMS_RIDGE", "lasso_nonnegative", "lasso_nonnegative_gram", "lasso_objective",
            "lasso_nonnegative_reference"]
@@ -76,10 +76,7 @@ def _append_atom(gram, members, k, atom, factor, column):
     nothing changed) when the atom is numerically in the span of the ``k`` active atoms."""
     for r in range(k):
         column[r] = gram[members[r], atom]
-    forward_substitute(factor, k, column)
-    pivot = gram[atom, atom]
-    for r in range(k):
-        pivot -= column[r] * column[r]
+    pivot = cholesky_pivot(factor, k, column, gram[atom, atom])
     if not (pivot > _PIVOT_TOLERANCE * gram[atom, atom]):
         return False
     for r in range(k):

@@ -1,4 +1,4 @@
-"""Solves with a Cholesky factor, in place: the step the lineage's active-set solvers (the lasso
+"""Cholesky factors grown a row at a time, and solves with them, in place: the steps the lineage's active-set solvers (the lasso
 of :mod:`nrmlc.lineage.lasso`, L1's Newton step in :mod:`nrmlc.lineage.l1`) take each time their
 active set changes. Plain loops, so that they run inside the solvers' ``prange`` over problems."""
 from __future__ import annotations
@@ -16,6 +16,18 @@ def forward_substitute(factor, k, x):
         for c in range(r):
             total -= factor[r, c] * x[c]
         x[r] = total / factor[r, r]
+
+
+@njit(**NUMBA_FLAGS)
+def cholesky_pivot(factor, k, row, diagonal):
+    """The next row of a Cholesky factor: ``row[:k]`` <- ``L^-1 row[:k]`` (``L`` as in
+    :func:`forward_substitute`), and the return value ``diagonal - ||row[:k]||^2``, the square of
+    the row's diagonal entry (not above 0: the matrix is not positive definite at this row)."""
+    forward_substitute(factor, k, row)
+    pivot = diagonal
+    for r in range(k):
+        pivot -= row[r] * row[r]
+    return pivot
 
 
 @njit(**NUMBA_FLAGS)
