@@ -115,10 +115,9 @@ def run(roots, out, seeds=(0, 1, 2, 3, 4), groups=None, cache=None, jobs=None, m
     for group, members in groups.items():
         summary[group] = {"n": len(members), "means": {c: float(np.mean([np.mean(v[n]) for n in members]))
                                                        for c, v in columns.items()}}
-        summary[group]["differences"] = {
-            f"{ours} - {theirs}": {**compare(columns[ours], columns[theirs], members),
-                                   "verdict": verdict(compare(columns[ours], columns[theirs], members))}
-            for ours in NRMLC_CONFIGURATIONS for theirs in LINEAGE}
+        differences = {f"{ours} - {theirs}": compare(columns[ours], columns[theirs], members)
+                       for ours in NRMLC_CONFIGURATIONS for theirs in LINEAGE}
+        summary[group]["differences"] = {pair: {**d, "verdict": verdict(d)} for pair, d in differences.items()}
     group_of = {n: g for g, members in groups.items() for n in members}
     rows = [[n, group_of[n]] + [float(np.mean(columns[c][n])) for c in columns] for n in names]
     out = Path(out)
