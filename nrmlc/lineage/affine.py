@@ -26,7 +26,7 @@ from nrmlc.config import PARALLEL_FLAGS
 from nrmlc.errors import ParameterError
 from nrmlc.kernels.checks import check_array
 from nrmlc.lineage.checks import check_states, patch_buffer
-from nrmlc.workbench.otb_results import ivt_affine_boxes
+from nrmlc.workbench.otb_results import ivt_affine_boxes, matlab_round
 
 #: :data:`nrmlc.config.PARALLEL_FLAGS` without fastmath, for a kernel that must round as a MATLAB
 #: mex does: no fused multiply-add may move a coordinate across a half before it is rounded.
@@ -110,7 +110,7 @@ def box_to_geom(box, template_width: int, round_centre: bool) -> np.ndarray:
     x, y, w, h = (float(v) for v in np.asarray(box, dtype=np.float64).ravel())
     centre = np.array([x + w / 2, y + h / 2, w, h])
     if round_centre:
-        centre = np.sign(centre) * np.floor(np.abs(centre) + 0.5)  # MATLAB's round
+        centre = matlab_round(centre)
     return np.array([centre[0], centre[1], centre[2] / template_width, 0.0, centre[3] / centre[2], 0.0])
 
 

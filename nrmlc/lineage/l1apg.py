@@ -89,7 +89,7 @@ from nrmlc.kernels.checks import check_array
 from nrmlc.lineage.affine import EXACT_PARALLEL_FLAGS, gray_frame
 from nrmlc.lineage.apg import apg_lasso
 from nrmlc.lineage.apg import warm_up as _warm_up_apg
-from nrmlc.workbench.otb_results import l1_affine_boxes
+from nrmlc.workbench.otb_results import l1_affine_boxes, matlab_round
 
 #: MATLAB's ``eps``.
 EPS = float(np.finfo(np.float64).eps)
@@ -163,11 +163,6 @@ class L1APGParams(TemplateTrackerParams):
         check_real(self, "template_jitter", 0.0, 1e3)
         check_real(self, "occlusion_level", 0.0, 1e3)
         check_real(self, "occlusion_fraction", 0.0, 1.0, low_open=True)
-
-
-def matlab_round(x):
-    """MATLAB's ``round``: halves away from zero (numpy's go to even)."""
-    return np.sign(x) * np.floor(np.abs(x) + 0.5)
 
 
 def gray_levels(frame: np.ndarray) -> np.ndarray:

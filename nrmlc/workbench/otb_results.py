@@ -276,6 +276,11 @@ def _matrix(value, path, columns: int, what: str) -> np.ndarray:
     return array
 
 
+def matlab_round(x):
+    """MATLAB's ``round``: halves away from zero (numpy's rounds them to even)."""
+    return np.sign(x) * np.floor(np.abs(x) + 0.5)
+
+
 def ivt_affine_boxes(res, template_size) -> np.ndarray:
     """Boxes of IVT-style affine states (``type`` ``ivtAff``), as the toolkit's ``calcRectCenter``.
 
@@ -321,14 +326,10 @@ def l1_affine_boxes(res, template_size) -> np.ndarray:
     """
     p = np.asarray(res, dtype=np.float64).reshape(-1, 6)
     rows, cols = (float(v) for v in np.asarray(template_size, dtype=np.float64).ravel()[:2])
-    # MATLAB's round: halves away from zero (numpy's rounds them to even).
-    def round_half_away(x):
-        return np.sign(x) * np.floor(np.abs(x) + 0.5)
-
-    top = round_half_away(p[:, 0] + p[:, 1] + p[:, 4])
-    left = round_half_away(p[:, 2] + p[:, 3] + p[:, 5])
-    bottom = round_half_away(p[:, 0] * rows + p[:, 1] * cols + p[:, 4])
-    right = round_half_away(p[:, 2] * rows + p[:, 3] * cols + p[:, 5])
+    top = matlab_round(p[:, 0] + p[:, 1] + p[:, 4])
+    left = matlab_round(p[:, 2] + p[:, 3] + p[:, 5])
+    bottom = matlab_round(p[:, 0] * rows + p[:, 1] * cols + p[:, 4])
+    right = matlab_round(p[:, 2] * rows + p[:, 3] * cols + p[:, 5])
     return np.stack([left, top, right - left + 1, bottom - top + 1], axis=1)
 
 
