@@ -18,15 +18,11 @@ from pathlib import Path
 
 
 def _cmd_evaluate(args: argparse.Namespace) -> int:
-    import dataclasses
+    from nrmlc.workbench.evaluate_cli import run_evaluate_file, run_evaluate_folders
 
-    from nrmlc.workbench.evaluate_cli import EvaluateOptions, run_evaluate_file, run_evaluate_folders
-
-    options = EvaluateOptions(**{f.name: (tuple(getattr(args, f.name)) if f.name in ("results", "name_map")
-                                          else getattr(args, f.name)) for f in dataclasses.fields(EvaluateOptions)})
-    if options.data is not None:  # result folders of any number of trackers (nrmlc/workbench/evaluate_cli.py)
-        return run_evaluate_folders(options)
-    return run_evaluate_file(options)
+    if args.data is not None:  # result folders of any number of trackers (nrmlc/workbench/evaluate_cli.py)
+        return run_evaluate_folders(args)
+    return run_evaluate_file(args)
 
 
 def _cmd_list(args: argparse.Namespace) -> int:

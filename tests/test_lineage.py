@@ -2,6 +2,7 @@
 and how the workbench and the command line reach them."""
 from __future__ import annotations
 
+import dataclasses
 from pathlib import Path
 
 import numba
@@ -11,6 +12,7 @@ import pytest
 from nrmlc.data import synthetic_suite
 from nrmlc.errors import ParameterError
 from nrmlc.lineage import TRACKERS
+from nrmlc.lineage.blocks import MAX_BLOCKS, problem_blocks
 from nrmlc.lineage.affine import (box_to_geom, geom_to_matrix, matrix_to_box, matrix_to_geom, warp_patches,
                                   warp_patches_reference)
 from nrmlc.lineage.ivt import IVTParams, IVTTracker
@@ -131,6 +133,21 @@ def test_warp_and_crop_refuse_bad_states(patches, states, message):
         patches(np.zeros((10, 10)), states, (4, 4))
 
 
+@pytest.mark.parametrize("patches", [warp_patches, crop_patches], ids=["warp", "crop"])
+def test_warp_and_crop_refuse_a_bad_frame_or_buffer(patches):
+    frame, states = np.zeros((10, 10)), np.zeros((2, 6))
+    states[:, [0, 3] if patches is crop_patches else [2, 5]] = 1.0
+    with pytest.raises(ParameterError, match="frame must be finite"):
+        patches(np.full((10, 10), np.inf), states, (4, 4))
+    with pytest.raises(ParameterError, match=r"shape \(2, 4, 3\)"):
+        patches(frame, states, (4, 3), out=np.empty((2, 3, 4)))
+    with pytest.raises(ParameterError, match="C-contiguous float64"):
+        patches(frame, states, (4, 3), out=np.empty((2, 4, 3), dtype=np.float32))
+    given = np.empty((2, 4, 3))
+    got = patches(frame, states, (4, 3), out=given)
+    assert (got[0] if patches is crop_patches else got) is given
+
+
 @pytest.mark.parametrize("patches, seed, inputs", [(warp_patches, 3, _warp_inputs), (crop_patches, 11, _crop_inputs)],
                          ids=["warp", "crop"])
 def test_warp_and_crop_are_the_same_for_any_thread_count(patches, seed, inputs):
@@ -213,7 +230,8 @@ def test_ivt_is_reproducible_by_seed(sequence):
 
 
 @pytest.mark.parametrize("field, value", [("n_particles", 0), ("condenssig", 0.0), ("forgetting", 1.5),
-                                          ("batch_size", 0), ("affine_sigma", (1, 2, 3))])
+                                          ("batch_size", 0), ("affine_sigma", (1, 2, 3)), ("max_basis", 0),
+                                          ("intensity_scale", 0.0), ("template_size", (32, 1))])
 def test_ivt_parameters_out_of_range_are_refused(field, value):
     with pytest.raises(ParameterError, match=f"IVTParams.{field}"):
         IVTParams(**{field: value})
@@ -313,3 +331,47 @@ def test_gray_frame_refuses_what_is_not_a_gray_or_bgr_frame(shape):
     with pytest.raises(ParameterError, match=r"frame must be \(H, W\) or \(H, W, 3\)"):
         gray_frame(np.zeros(shape, dtype=np.uint8), 255.0)
     assert gray_frame(np.full((4, 5, 3), 51, dtype=np.uint8), 255.0) == pytest.approx(np.full((4, 5), 0.2))
+
+
+# --------------------------------------------------------------------------- every lineage group's bounds
+
+
+def _bounded_fields():
+    from nrmlc.lineage.asla import ASLAParams
+    from nrmlc.lineage.l1 import L1Params
+    from nrmlc.lineage.l1apg import L1APGParams, TemplateTrackerParams
+    from nrmlc.lineage.mtt import MTTParams
+
+    for group in (IVTParams, ASLAParams, TemplateTrackerParams, L1APGParams, L1Params, MTTParams):
+        for field in dataclasses.fields(group):
+            if "low" in field.metadata:
+                yield pytest.param(group, field, id=f"{group.__name__}.{field.name}")
+
+
+def _refused_here(group, field, value) -> bool:
+    """Whether ``group`` refuses ``field=value`` naming that field (another field's tie may refuse
+    an edge value too: that is not this field's bound)."""
+    try:
+        group(**{field.name: value})
+    except ParameterError as error:
+        return f"{group.__name__}.{field.name} must" in str(error)
+    return False
+
+
+@pytest.mark.parametrize("group, field", list(_bounded_fields()))
+def test_lineage_groups_enforce_each_bound_at_its_edge(group, field):
+    low, high, low_open = field.metadata["low"], field.metadata["high"], field.metadata["low_open"]
+    if field.type == "int":
+        inside, outside = [low, high], [low - 1, high + 1, 1.5, True]
+    else:
+        inside = [high] + ([] if low_open else [low])
+        outside = [np.nextafter(low, -np.inf), np.nextafter(high, np.inf), np.nan, "1"] + ([low] if low_open else [])
+    assert not any(_refused_here(group, field, value) for value in inside)
+    assert all(_refused_here(group, field, value) for value in outside)
+
+
+@pytest.mark.parametrize("n", [1, 2, 63, 64, 65, 127, 128, 129, 5400])
+def test_problem_blocks_cover_the_problems_with_no_block_empty(n):
+    n_blocks, block_size = problem_blocks(n)
+    assert 1 <= n_blocks <= MAX_BLOCKS
+    assert (n_blocks - 1) * block_size < n <= n_blocks * block_size

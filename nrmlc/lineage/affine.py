@@ -24,8 +24,7 @@ from numba import njit, prange
 
 from nrmlc.config import PARALLEL_FLAGS
 from nrmlc.errors import ParameterError
-from nrmlc.kernels.checks import check_array
-from nrmlc.lineage.checks import check_states, patch_buffer
+from nrmlc.lineage.checks import check_patch_arguments
 from nrmlc.workbench.otb_results import ivt_affine_boxes, matlab_round
 
 #: :data:`nrmlc.config.PARALLEL_FLAGS` without fastmath, for a kernel that must round as a MATLAB
@@ -124,12 +123,7 @@ def _warp_patches(frame, matrices, patches):
     height, width = frame.shape
     rows, cols = patches.shape[1], patches.shape[2]
     for particle in prange(matrices.shape[0]):
-        tx = matrices[particle, 0]
-        ty = matrices[particle, 1]
-        a11 = matrices[particle, 2]
-        a12 = matrices[particle, 3]
-        a21 = matrices[particle, 4]
-        a22 = matrices[particle, 5]
+        tx, ty, a11, a12, a21, a22 = matrices[particle]
         for row in range(rows):
             v = row + 1 - rows / 2.0
             for col in range(cols):
@@ -162,9 +156,9 @@ def warp_patches(frame: np.ndarray, matrices: np.ndarray, template_size, out: np
     Parameters
     ----------
     frame : (H, W) float64
-        Gray frame, C-contiguous.
+        Gray frame, C-contiguous, finite.
     matrices : (n, 6) float64
-        Matrix states (module docstring), C-contiguous.
+        Matrix states (module docstring), C-contiguous, finite.
     template_size : (2,) int
         ``(h, w)``.
     out : (n, h, w) float64, optional
@@ -174,10 +168,7 @@ def warp_patches(frame: np.ndarray, matrices: np.ndarray, template_size, out: np
     -------
     (n, h, w) float64
     """
-    check_array("frame", frame, np.float64, 2)
-    check_states("matrices", matrices, "tx, ty, a11, a12, a21, a22")
-    h, w = (int(v) for v in template_size)
-    out = patch_buffer(out, (matrices.shape[0], h, w))
+    out = check_patch_arguments(frame, matrices, "matrices", "tx, ty, a11, a12, a21, a22", template_size, out)
     _warp_patches(frame, matrices, out)
     return out
 

@@ -37,14 +37,12 @@ from numba import njit, prange
 
 from nrmlc.config import NUMBA_FLAGS, PARALLEL_FLAGS
 from nrmlc.errors import ParameterError
+from nrmlc.lineage.blocks import problem_blocks
 from nrmlc.lineage.checks import check_targets_and_signals
 from nrmlc.kernels.checks import check_int, check_nonnegative_real
 
 __all__ = ["apg_lasso", "apg_lasso_reference"]
 
-#: Problems per work buffer: a block of problems is solved one after the other by one thread and
-#: each problem starts from zero, so the result does not depend on the blocks or the thread count.
-_MAX_BLOCKS = 64
 
 
 @njit(**NUMBA_FLAGS)
@@ -52,12 +50,8 @@ def _solve_problem(targets, signal, lam_target, lam_trivial, mu, lipschitz, max_
                    x_target, x_trivial, target_work, trivial_work):
     """APG steps for one signal; ``x_target`` (k,) and ``x_trivial`` (N,) receive the result."""
     k, size = targets.shape
-    prev_target = target_work[0]
-    z_target = target_work[1]
-    correlation = target_work[2]
-    prev_trivial = trivial_work[0]
-    z_trivial = trivial_work[1]
-    fitted = trivial_work[2]
+    prev_target, z_target, correlation = target_work
+    prev_trivial, z_trivial, fitted = trivial_work
     for j in range(k):
         total = 0.0
         row = targets[j]
@@ -157,9 +151,7 @@ def apg_lasso(targets: np.ndarray, signals: np.ndarray, lambdas, lipschitz: floa
     x_target = np.empty((n, k), dtype=np.float64)
     x_trivial = np.empty((n, size), dtype=np.float64)
     if n:
-        n_blocks = min(n, _MAX_BLOCKS)
-        block_size = -(-n // n_blocks)
-        n_blocks = -(-n // block_size)
+        n_blocks, block_size = problem_blocks(n)
         target_work = np.empty((n_blocks, 3, k), dtype=np.float64)
         trivial_work = np.empty((n_blocks, 3, size), dtype=np.float64)
         _solve_problems(targets, signals, lam_target, lam_trivial, mu, lipschitz, max_iter, block_size,

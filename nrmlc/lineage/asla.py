@@ -55,7 +55,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from nrmlc.errors import ParameterError
-from nrmlc.lineage.checks import check_affine_sigma, check_integer, check_real
+from nrmlc.lineage.checks import LineageParams, bounded, check_affine_sigma, check_integer
 from nrmlc.lineage.affine import box_to_geom, geom_to_matrix, gray_frame, matrix_to_box, matrix_to_geom, warp_patches
 from nrmlc.lineage.lasso import SPAMS_RIDGE, lasso_nonnegative_gram
 from nrmlc.lineage.subspace import Subspace
@@ -65,48 +65,38 @@ EPS = float(np.finfo(np.float64).eps)
 
 
 @dataclass(frozen=True)
-class ASLAParams:
+class ASLAParams(LineageParams):
     """ASLA's parameters (the OTB benchmark's ``paraConfig_ASLA.m`` and ``run_ASLA.m``)."""
 
-    n_particles: int = 600
+    n_particles: int = bounded(600, 1, 100_000)
     #: Standard deviations of the geometric state's noise: x, y (pixels), scale, rotation, aspect, skew.
     affine_sigma: tuple = (4.0, 4.0, 0.01, 0.0, 0.005, 0.0)
     #: The lasso's l1 weight (both the local coding and the reconstruction).
-    lasso_lambda: float = 0.01
+    lasso_lambda: float = bounded(0.01, 0.0, 1e3, low_open=True)
     #: The diagonal SPAMS adds to the lasso's Gram matrix (:data:`~nrmlc.lineage.lasso.SPAMS_RIDGE`).
-    lasso_ridge: float = SPAMS_RIDGE
+    lasso_ridge: float = bounded(SPAMS_RIDGE, 0.0, 1.0)
     #: Side of the square template (``psize`` [32, 32]).
-    template_side: int = 32
-    #: Side of a local patch and the step between local patches.
+    template_side: int = bounded(32, 2, 256)
+    #: Side of a local patch (at most ``template_side``) and the step between local patches.
     patch_side: int = 16
-    patch_step: int = 8
+    patch_step: int = bounded(8, 1, 256)
     #: Exemplars in the dictionary (``EXEMPLAR_NUM``), also the frames of the initial tracking.
-    n_exemplars: int = 10
+    n_exemplars: int = bounded(10, 2, 30)
     #: Answers per subspace update.
-    batch_size: int = 5
+    batch_size: int = bounded(5, 1, 1000)
     #: Basis vectors kept after an update.
-    max_basis: int = 10
+    max_basis: int = bounded(10, 1, 1000)
     #: Forgetting factor of the subspace update.
-    forgetting: float = 1.0
+    forgetting: float = bounded(1.0, 0.0, 1.0, low_open=True)
     #: Frames are gray levels divided by this.
-    intensity_scale: float = 255.0
+    intensity_scale: float = bounded(255.0, 0.0, 1e6, low_open=True)
 
-    def __post_init__(self) -> None:
-        check_integer(self, "n_particles", 1, 100_000)
-        check_integer(self, "template_side", 2, 256)
+    def check_group(self) -> None:
         check_integer(self, "patch_side", 1, self.template_side)
-        check_integer(self, "patch_step", 1, 256)
-        check_integer(self, "n_exemplars", 2, 30)
-        check_integer(self, "batch_size", 1, 1000)
-        check_integer(self, "max_basis", 1, 1000)
         if (self.template_side - self.patch_side) % self.patch_step:
             raise ParameterError(f"ASLAParams: (template_side - patch_side) must be a multiple of patch_step, got "
                                  f"{self.template_side}, {self.patch_side}, {self.patch_step}")
         check_affine_sigma(self)
-        check_real(self, "lasso_lambda", 0.0, 1e3, low_open=True)
-        check_real(self, "lasso_ridge", 0.0, 1.0)
-        check_real(self, "forgetting", 0.0, 1.0, low_open=True)
-        check_real(self, "intensity_scale", 0.0, 1e6, low_open=True)
 
     @property
     def patches_per_side(self) -> int:

@@ -2,9 +2,35 @@
 naming ``<Group>.<field>`` and the value given."""
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 
 from nrmlc.errors import ParameterError
+from nrmlc.tracker.parameter_fields import bounded
+
+__all__ = ["LineageParams", "bounded"]
+
+
+class LineageParams:
+    """Base of the lineage's frozen parameter groups: every field declared with
+    :func:`~nrmlc.tracker.parameter_fields.bounded` is checked on construction (an ``int`` field
+    with :func:`check_integer`, any other with :func:`check_real`), then the group's
+    ``check_group`` checks what the bounds cannot (tuples, fields tied to each other)."""
+
+    def __post_init__(self) -> None:
+        for field in dataclasses.fields(self):
+            meta = field.metadata
+            if "low" not in meta:
+                continue
+            if field.type in ("int", int):
+                check_integer(self, field.name, meta["low"], meta["high"])
+            else:
+                check_real(self, field.name, meta["low"], meta["high"], low_open=meta["low_open"])
+        self.check_group()
+
+    def check_group(self) -> None:
+        """The checks that bounds on single fields cannot state (none here)."""
 
 
 def _where(params, name: str) -> str:
@@ -75,20 +101,23 @@ def check_weight_cap(params, name: str) -> None:
                              f"got {cap!r} x {params.n_templates}")
 
 
-def check_states(name: str, states, columns: str) -> None:
-    """``states`` (the argument ``name``): (n, 6) float64, C-contiguous and finite; ``columns``
-    names the six for the message."""
+def check_patch_arguments(frame, states, name: str, columns: str, template_size, out) -> np.ndarray:
+    """The checks of a patch sampler's arguments (:func:`nrmlc.lineage.affine.warp_patches`,
+    :func:`nrmlc.lineage.l1apg.crop_patches`): ``frame`` (H, W) and ``states`` (the argument
+    ``name``, (n, 6), its columns named ``columns`` in the message) float64, C-contiguous and
+    finite. Returns ``out`` when it is a C-contiguous float64 array of shape (n, h, w) for
+    ``template_size`` ``(h, w)``, a new one when it is None."""
     from nrmlc.kernels.checks import check_array
 
+    check_array("frame", frame, np.float64, 2)
+    if not np.isfinite(frame).all():
+        raise ParameterError("frame must be finite")
     check_array(name, states, np.float64, 2)
     if states.shape[1] != 6:
         raise ParameterError(f"{name} must have 6 columns ({columns}), got {states.shape[1]}")
     if not np.isfinite(states).all():
         raise ParameterError(f"{name} must be finite")
-
-
-def patch_buffer(out, shape: tuple) -> np.ndarray:
-    """``out`` when it is a C-contiguous float64 array of ``shape``, a new one when it is None."""
+    shape = (states.shape[0], *(int(v) for v in template_size))
     if out is None:
         return np.empty(shape, dtype=np.float64)
     if out.shape != shape or out.dtype != np.float64 or not out.flags.c_contiguous:

@@ -28,36 +28,33 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from nrmlc.lineage.checks import check_affine_sigma, check_integer, check_real
+from nrmlc.lineage.checks import LineageParams, bounded, check_affine_sigma, check_template_size
 from nrmlc.lineage.affine import box_to_geom, geom_to_matrix, gray_frame, matrix_to_box, matrix_to_geom, warm_up, warp_patches
 from nrmlc.lineage.subspace import Subspace
 
 
 @dataclass(frozen=True)
-class IVTParams:
+class IVTParams(LineageParams):
     """IVT's parameters (the OTB benchmark's ``paraConfig_ivt.m`` and ``run_IVT.m``)."""
 
-    n_particles: int = 600
+    n_particles: int = bounded(600, 1, 100_000)
     #: The error's temperature: weight ``exp(-||residual||^2 / condenssig)``.
-    condenssig: float = 0.75
+    condenssig: float = bounded(0.75, 0.0, 1e6, low_open=True)
     #: Forgetting factor of the subspace update.
-    forgetting: float = 0.95
+    forgetting: float = bounded(0.95, 0.0, 1.0, low_open=True)
     #: Answers per subspace update.
-    batch_size: int = 5
+    batch_size: int = bounded(5, 1, 1000)
     #: Standard deviations of the geometric state's noise: x, y (pixels), scale, rotation, aspect, skew.
     affine_sigma: tuple = (4.0, 4.0, 0.01, 0.0, 0.005, 0.0)
     #: Template rows and columns.
     template_size: tuple = (32, 32)
-    max_basis: int = 16
+    max_basis: int = bounded(16, 1, 1000)
     #: Frames are gray levels divided by this.
-    intensity_scale: float = 256.0
+    intensity_scale: float = bounded(256.0, 0.0, 1e6, low_open=True)
 
-    def __post_init__(self) -> None:
-        check_integer(self, "n_particles", 1, 100_000)
-        check_real(self, "condenssig", 0.0, 1e6, low_open=True)
-        check_real(self, "forgetting", 0.0, 1.0, low_open=True)
-        check_integer(self, "batch_size", 1, 1000)
+    def check_group(self) -> None:
         check_affine_sigma(self)
+        check_template_size(self)
 
 
 class IVTTracker:

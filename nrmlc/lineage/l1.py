@@ -90,10 +90,11 @@ from numba import njit, prange
 
 from nrmlc.config import NUMBA_FLAGS, PARALLEL_FLAGS
 from nrmlc.errors import ParameterError
-from nrmlc.lineage.checks import check_real, check_targets_and_signals, check_weight_cap
+from nrmlc.lineage.checks import bounded, check_targets_and_signals, check_weight_cap
 from nrmlc.kernels.checks import check_nonnegative_real
 from nrmlc.lineage.l1apg import (TemplateTracker, TemplateTrackerParams, box_corners, corners_to_state, crop_patches, gray_levels, resample_states, whiten)
 from nrmlc.lineage.lasso import SPAMS_RIDGE
+from nrmlc.lineage.blocks import problem_blocks
 from nrmlc.lineage.triangular import cholesky_pivot, cholesky_solve
 
 __all__ = ["L1Params", "L1Tracker", "trivial_lasso", "trivial_lasso_reference", "images_angle",
@@ -138,9 +139,6 @@ _KKT_TOLERANCE = 1e-12
 #: Newton steps per problem before the solver gives up (a rounding-induced stall; -1 is returned).
 _MAX_STEPS = 200
 
-#: Problems per work buffer: each block is solved problem after problem by one thread and each
-#: problem starts from zero, so results do not depend on the blocks or the thread count.
-_MAX_BLOCKS = 64
 
 
 @dataclass(frozen=True)
@@ -149,21 +147,19 @@ class L1Params(TemplateTrackerParams):
     :class:`~nrmlc.lineage.l1apg.TemplateTrackerParams`)."""
 
     template_size: tuple = (12, 15)
+    n_templates: int = bounded(10, 1, len(TEMPLATE_SHIFTS))
     affine_sigma: tuple = (0.005, 0.0005, 0.0005, 0.005, 1.0, 1.0)
     #: The lasso's l1 weight (``param.lambda``).
-    lam: float = 0.01
+    lam: float = bounded(0.01, 0.0, 1e3, low_open=True)
     #: The likelihood's ``alpha``: ``exp(-alpha * ||error||)``.
-    alpha: float = 30.0
+    alpha: float = bounded(30.0, 0.0, 1e6, low_open=True)
     #: Degrees between the answer and its template of largest coefficient above which a template is replaced.
-    angle_threshold: float = 60.0
+    angle_threshold: float = bounded(60.0, 0.0, 180.0)
     #: ``normalizeWeights.m``'s cap on a template's share of the weights.
     weight_cap: float = 0.3
 
-    def __post_init__(self) -> None:
-        self._check_shared(1, len(TEMPLATE_SHIFTS))
-        check_real(self, "lam", 0.0, 1e3, low_open=True)
-        check_real(self, "alpha", 0.0, 1e6, low_open=True)
-        check_real(self, "angle_threshold", 0.0, 180.0)
+    def check_group(self) -> None:
+        super().check_group()
         check_weight_cap(self, "weight_cap")
 
 
@@ -211,13 +207,8 @@ def _solve_problem(targets, signal, lam, ridge, a, e, k_work, n_work, hessian, f
     """One problem (module comment above); ``a`` (k,) and ``e`` (N,) receive the solution. Returns
     the Newton steps taken, or -1 when the step cap stopped a stalled run (the last point is kept)."""
     k, size = targets.shape
-    gradient = k_work[0]
-    pg = k_work[1]
-    direction = k_work[2]
-    sign = k_work[3]
-    column = k_work[4]
-    residual = n_work[0]
-    along = n_work[1]
+    gradient, pg, direction, sign, column = k_work
+    residual, along = n_work
     outside_curvature = ridge / (1.0 + ridge)
     inside_extra = 1.0 / (1.0 + ridge)  # inside curvature 1 = outside_curvature + inside_extra
     scale = 0.0
@@ -469,9 +460,7 @@ def trivial_lasso(targets: np.ndarray, signals: np.ndarray, lam: float, ridge: f
     e = np.empty((n, size), dtype=np.float64)
     steps = np.empty(n, dtype=np.int64)
     if n:
-        n_blocks = min(n, _MAX_BLOCKS)
-        block_size = -(-n // n_blocks)
-        n_blocks = -(-n // block_size)
+        n_blocks, block_size = problem_blocks(n)
         n_bp = 2 * size + k
         _solve_problems(targets, signals, lam, ridge, block_size, np.empty((n_blocks, 5, k)),
                         np.empty((n_blocks, 2, size)), np.empty((n_blocks, k, k)),

@@ -83,9 +83,7 @@ from numba import njit, prange
 from scipy import ndimage
 
 from nrmlc.errors import ParameterError
-from nrmlc.lineage.checks import (check_affine_sigma, check_integer, check_real, check_states, check_template_size,
-                                  patch_buffer)
-from nrmlc.kernels.checks import check_array
+from nrmlc.lineage.checks import LineageParams, bounded, check_affine_sigma, check_patch_arguments, check_template_size
 from nrmlc.lineage.affine import EXACT_PARALLEL_FLAGS, gray_frame
 from nrmlc.lineage.apg import apg_lasso
 from nrmlc.lineage.apg import warm_up as _warm_up_apg
@@ -103,22 +101,20 @@ _BATCH = 48
 
 
 @dataclass(frozen=True)
-class TemplateTrackerParams:
+class TemplateTrackerParams(LineageParams):
     """What L1-APG, L1 and MTT share: particles, templates and the sampling's deviations (their
     MATLAB's ``sz_T``, ``nT``, ``rel_std_afnv``); each tracker's group sets its own values."""
 
-    n_particles: int = 600
+    n_particles: int = bounded(600, 1, 100_000)
     #: Template rows and columns (``sz_T``).
     template_size: tuple = (32, 32)
     #: Target templates (``nT``).
-    n_templates: int = 10
+    n_templates: int = bounded(10, 1, 100)
     #: Relative deviations of the sampling (``rel_std_afnv``): log a11, a12, a21, log a22, then the
     #: row and column translation; all but the first and fourth are multiplied by the state's scale.
     affine_sigma: tuple = (0.005, 0.0005, 0.0005, 0.005, 4.0, 4.0)
 
-    def _check_shared(self, min_particles: int, max_templates: int) -> None:
-        check_integer(self, "n_particles", min_particles, 100_000)
-        check_integer(self, "n_templates", 1, max_templates)
+    def check_group(self) -> None:
         check_template_size(self)
         check_affine_sigma(self)
 
@@ -127,42 +123,29 @@ class TemplateTrackerParams:
 class L1APGParams(TemplateTrackerParams):
     """L1-APG's parameters (the OTB benchmark's ``paraConfig_L1_APG.m`` and ``L1TrackingBPR_APGup.m``)."""
 
+    n_particles: int = bounded(600, 2, 100_000)
     #: ``lambda(1)``: the weight on the target templates' coefficients.
-    lambda_template: float = 0.01
+    lambda_template: float = bounded(0.01, 0.0, 1e3)
     #: ``lambda(2)``: the l1 weight on the trivial templates' coefficients.
-    lambda_trivial: float = 0.001
+    lambda_trivial: float = bounded(0.001, 0.0, 1e3)
     #: ``lambda(3)``: the weight of the trivial coefficients' squared norm (switched off after an occlusion).
-    mu: float = 1.0
+    mu: float = bounded(1.0, 0.0, 1e3)
     #: ``Lip``: the APG step is its inverse.
-    lipschitz: float = 8.0
+    lipschitz: float = bounded(8.0, 0.0, 1e6, low_open=True)
     #: ``Maxit``: APG steps per particle.
-    max_iter: int = 5
+    max_iter: int = bounded(5, 0, 10_000)
     #: The likelihood's ``alpha``: ``exp(-alpha * error)``.
-    alpha: float = 50.0
+    alpha: float = bounded(50.0, 0.0, 1e6, low_open=True)
     #: Degrees between the answer and its strongest template above which the template step runs.
-    angle_threshold: float = 30.0
+    angle_threshold: float = bounded(30.0, 0.0, 180.0)
     #: Deviation in pixels of the corner noise of the templates after the first (``InitTemplates.m``).
-    template_jitter: float = 0.6
+    template_jitter: float = bounded(0.6, 0.0, 1e3)
     #: ``im2bw``'s level on the trivial coefficients.
-    occlusion_level: float = 0.03
+    occlusion_level: float = bounded(0.03, 0.0, 1e3)
     #: A region of the occlusion map this fraction of the template or larger is an occlusion.
-    occlusion_fraction: float = 0.25
+    occlusion_fraction: float = bounded(0.25, 0.0, 1.0, low_open=True)
     #: Frames without template updates after an occlusion (``occlusionNf``).
-    occlusion_frames: int = 5
-
-    def __post_init__(self) -> None:
-        self._check_shared(2, 100)
-        check_integer(self, "max_iter", 0, 10_000)
-        check_integer(self, "occlusion_frames", 0, 1_000_000)
-        check_real(self, "lambda_template", 0.0, 1e3)
-        check_real(self, "lambda_trivial", 0.0, 1e3)
-        check_real(self, "mu", 0.0, 1e3)
-        check_real(self, "lipschitz", 0.0, 1e6, low_open=True)
-        check_real(self, "alpha", 0.0, 1e6, low_open=True)
-        check_real(self, "angle_threshold", 0.0, 180.0)
-        check_real(self, "template_jitter", 0.0, 1e3)
-        check_real(self, "occlusion_level", 0.0, 1e3)
-        check_real(self, "occlusion_fraction", 0.0, 1.0, low_open=True)
+    occlusion_frames: int = bounded(5, 0, 1_000_000)
 
 
 def gray_levels(frame: np.ndarray) -> np.ndarray:
@@ -226,12 +209,7 @@ def _crop_patches(frame, states, patches, in_range):
     height, width = frame.shape
     rows, cols = patches.shape[1], patches.shape[2]
     for particle in prange(states.shape[0]):
-        a11 = states[particle, 0]
-        a12 = states[particle, 1]
-        a21 = states[particle, 2]
-        a22 = states[particle, 3]
-        tr = states[particle, 4]
-        tc = states[particle, 5]
+        a11, a12, a21, a22, tr, tc = states[particle]
         count = 0
         total = 0.0
         patch = patches[particle]
@@ -288,12 +266,7 @@ def crop_patches(frame: np.ndarray, states: np.ndarray, template_size, out: np.n
     patches : (n, rows, cols) float64
     in_range : (n,) bool
     """
-    check_array("frame", frame, np.float64, 2)
-    check_states("states", states, "a11, a12, a21, a22, tr, tc")
-    if not np.isfinite(frame).all():
-        raise ParameterError("frame must be finite")
-    rows, cols = (int(v) for v in template_size)
-    out = patch_buffer(out, (states.shape[0], rows, cols))
+    out = check_patch_arguments(frame, states, "states", "a11, a12, a21, a22, tr, tc", template_size, out)
     in_range = np.empty(states.shape[0], dtype=np.bool_)
     _crop_patches(frame, states, out, in_range)
     return out, in_range

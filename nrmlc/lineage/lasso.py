@@ -41,6 +41,7 @@ from numba import njit, prange
 from nrmlc.config import NUMBA_FLAGS, PARALLEL_FLAGS
 from nrmlc.errors import ParameterError
 from nrmlc.kernels.checks import check_array, check_finite, check_nonnegative_real
+from nrmlc.lineage.blocks import problem_blocks
 from nrmlc.lineage.triangular import cholesky_pivot, cholesky_solve
 
 __all__ = ["SPAMS_RIDGE", "lasso_nonnegative", "lasso_nonnegative_gram", "lasso_objective",
@@ -58,11 +59,6 @@ _KKT_TOLERANCE = 1e-11
 #: fraction of its squared norm (the new Cholesky pivot).
 _PIVOT_TOLERANCE = 1e-12
 
-#: Problems per work buffer: each block of problems shares one Cholesky buffer (one per problem
-#: would take ``n p^2`` doubles, 350 MB at ASLA's 5400 problems of 90 atoms). A block is solved
-#: problem after problem by one thread, and each problem starts from scratch, so the result does
-#: not depend on the blocks or the thread count.
-_MAX_BLOCKS = 64
 
 # Atom states inside the solver.
 _FREE = 0
@@ -103,12 +99,8 @@ def _solve_problem(gram, correlations, lam, factor, real_work, int_work, coeffic
     last feasible point).
     """
     p = gram.shape[0]
-    rhs = real_work[0]
-    gradient = real_work[1]
-    trial = real_work[2]
-    column = real_work[3]
-    members = int_work[0]
-    state = int_work[1]
+    rhs, gradient, trial, column = real_work
+    members, state = int_work
     scale = 0.0
     for j in range(p):
         rhs[j] = correlations[j] - lam
@@ -201,7 +193,7 @@ def _solve_problem(gram, correlations, lam, factor, real_work, int_work, coeffic
 
 @njit(**PARALLEL_FLAGS)
 def _solve_problems(gram, correlations, lam, block_size, factors, real_work, int_work, coefficients, entries):
-    # prange over blocks of problems (see _MAX_BLOCKS); each problem is solved by one thread.
+    # prange over blocks of problems (:mod:`nrmlc.lineage.blocks`); each problem is solved by one thread.
     n = correlations.shape[0]
     for block in prange(factors.shape[0]):
         stop = min(n, (block + 1) * block_size)
@@ -258,9 +250,7 @@ def lasso_nonnegative_gram(gram: np.ndarray, correlations: np.ndarray, lam: floa
     coefficients = np.empty((n, p), dtype=np.float64)
     entries = np.empty(n, dtype=np.int64)
     if n:
-        n_blocks = min(n, _MAX_BLOCKS)
-        block_size = -(-n // n_blocks)
-        n_blocks = -(-n // block_size)
+        n_blocks, block_size = problem_blocks(n)
         factors = np.empty((n_blocks, p, p), dtype=np.float64)
         real_work = np.empty((n_blocks, 4, p), dtype=np.float64)
         int_work = np.empty((n_blocks, 2, p), dtype=np.int64)

@@ -91,7 +91,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from nrmlc.lineage.checks import check_integer, check_real, check_weight_cap
+from nrmlc.lineage.checks import bounded, check_weight_cap
 from nrmlc.lineage.l1 import TEMPLATE_SHIFTS, images_angle, normalize_weights, shifted_template_states
 from nrmlc.lineage.l1apg import (TINY, TemplateTracker, TemplateTrackerParams, crop_patches, gray_levels, resample_states, whiten)
 from nrmlc.lineage.l21 import l21_apg
@@ -104,30 +104,25 @@ class MTTParams(TemplateTrackerParams):
     the shared fields: :class:`~nrmlc.lineage.l1apg.TemplateTrackerParams`, the templates being
     the first ``n_templates`` of ``InitTemplates.m``'s ten)."""
 
+    n_templates: int = bounded(10, 1, len(TEMPLATE_SHIFTS))
     #: ``lambda``: the weight of the l2,1 norm.
-    lam: float = 0.01
+    lam: float = bounded(0.01, 0.0, 1e3)
     #: ``eta``: the APG's step.
-    eta: float = 0.01
+    eta: float = bounded(0.01, 0.0, 1e3, low_open=True)
     #: ``obj_fun_th``: the APG stops once a step changes the objective by at most this fraction.
-    objective_tolerance: float = 1e-3
+    objective_tolerance: float = bounded(1e-3, 0.0, 1.0)
     #: ``iter_maxi``: the most APG steps per frame.
-    max_iter: int = 100
+    max_iter: int = bounded(100, 0, 100_000)
     #: The likelihood's ``alpha``: ``exp(-alpha * error)`` (L1-APG's value).
-    alpha: float = 50.0
+    alpha: float = bounded(50.0, 0.0, 1e6, low_open=True)
     #: ``m_theta``: a template is replaced when the answer's cosine similarity to its strongest
     #: template is below it.
-    theta: float = 0.6
+    theta: float = bounded(0.6, -1.0, 1.0)
     #: ``normalizeWeights.m``'s cap on a template's weight.
     max_weight: float = 0.3
 
-    def __post_init__(self) -> None:
-        self._check_shared(1, len(TEMPLATE_SHIFTS))
-        check_integer(self, "max_iter", 0, 100_000)
-        check_real(self, "lam", 0.0, 1e3)
-        check_real(self, "eta", 0.0, 1e3, low_open=True)
-        check_real(self, "objective_tolerance", 0.0, 1.0)
-        check_real(self, "alpha", 0.0, 1e6, low_open=True)
-        check_real(self, "theta", -1.0, 1.0)
+    def check_group(self) -> None:
+        super().check_group()
         check_weight_cap(self, "max_weight")
 
 

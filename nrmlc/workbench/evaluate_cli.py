@@ -24,7 +24,6 @@ import functools
 import json
 import sys
 import warnings
-from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -39,29 +38,6 @@ from nrmlc.workbench.score import MISSING_RULE, Comparison, TrackerScores, compa
 
 #: The output options of ``evaluate``, in the order they are checked.
 OUTPUT_OPTIONS = ("--plot", "--csv", "--attribute-plot", "--speed-plot")
-
-
-@dataclass(frozen=True)
-class EvaluateOptions:
-    """The options of ``evaluate``, as given (``nrmlc.cli`` builds this from its command line)."""
-
-    results: tuple = ()
-    groundtruth: str | None = None
-    json: bool = False
-    include_first: bool = False
-    data: str | None = None
-    names: str | None = None
-    sequences: str | None = None
-    name_map: tuple = ()
-    otb_trackers: str | None = None
-    all_seeds: bool = False
-    common: bool = False
-    max_frames: int | None = None
-    attributes: str | None = None
-    attribute_plot: str | None = None
-    speed_plot: str | None = None
-    plot: str | None = None
-    csv: str | None = None
 
 
 #: The folder form's options of ``evaluate``, in ``--help`` order: (option, ``add_argument`` keywords).
@@ -115,7 +91,7 @@ def add_evaluate_arguments(parser: argparse.ArgumentParser) -> None:
         parser.add_argument(option, **spec)
 
 
-def check_outputs(args: EvaluateOptions, inputs=(), input_folders=()) -> None:
+def check_outputs(args: argparse.Namespace, inputs=(), input_folders=()) -> None:
     """Refuse, before any work, an output that is an input, lies inside an input folder, or is given twice."""
     given = [(option, getattr(args, option[2:].replace("-", "_"), None)) for option in OUTPUT_OPTIONS]
     given = [(option, path) for option, path in given if path is not None]
@@ -175,7 +151,7 @@ def _memory_is_an_error(run):
 
 
 @_memory_is_an_error
-def run_evaluate_file(args: EvaluateOptions) -> int:
+def run_evaluate_file(args: argparse.Namespace) -> int:
     """``evaluate --results R.txt|R.mat --groundtruth G.txt``: the scores, each with the frames behind it."""
     from nrmlc.data import read_box_file
     from nrmlc.workbench.metrics import evaluate
@@ -237,7 +213,7 @@ def run_evaluate_file(args: EvaluateOptions) -> int:
 
 
 @_memory_is_an_error
-def run_evaluate_folders(args: EvaluateOptions) -> int:
+def run_evaluate_folders(args: argparse.Namespace) -> int:
     """``evaluate --results DIR [DIR ...] --data DATA ...``: table on stdout, notes on stderr."""
     if args.groundtruth:
         raise ParameterError("--groundtruth is for one result file; with --data give result folders")
@@ -290,7 +266,7 @@ class _Outputs(io.Together):
         return tmp
 
 
-def _write_outputs(args: EvaluateOptions, comparison: Comparison, scores: list) -> tuple[list, list]:
+def _write_outputs(args: argparse.Namespace, comparison: Comparison, scores: list) -> tuple[list, list]:
     """Every output of the folder form, all or none: the speed plot, which can be refused, first.
 
     Returns
