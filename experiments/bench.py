@@ -530,6 +530,8 @@ def _nrmlc_fps(sequence, frames, params) -> float:
 
 #: How the end-to-end rows name the lineage's trackers ("IVT (lineage, live)").
 LINEAGE_SUFFIX = "(lineage, live)"
+#: The paper's peers of NRMLC's lineage (Table II's names), built in :mod:`nrmlc.lineage` or not.
+LINEAGE_PAPER_NAMES = ("LSK", "L1", "L1APG", "MTT", "IVT", "ASLA")
 
 
 def _mil_fps(sequence, color_frames) -> float:
@@ -836,6 +838,24 @@ def _summary(result: dict) -> list[str]:
     return lines
 
 
+def _reported_matlab_lines(result: dict) -> list[str]:
+    """The paper's Table II fps of each lineage tracker's MATLAB original (its machine, not this
+    one), beside this run's live fps on Car4: a context ratio, not one measured side by side."""
+    from experiments import paper_numbers
+
+    live = {row["tracker"].split()[0]: row["fps_tracking"] for row in result["end_to_end"]
+            if row["sequence"] == "Car4" and row["tracker"].endswith(LINEAGE_SUFFIX)}
+    if not live:
+        return []
+    parts = [f"{name} {paper_numbers.FPS[name]:g} fps (live here: {fps:.1f}, {fps / paper_numbers.FPS[name]:.0f}x)"
+             for name, fps in live.items() if name in paper_numbers.FPS]
+    missing = [name for name in paper_numbers.PEERS if name not in live and name in LINEAGE_PAPER_NAMES]
+    return ["", "The paper's Table II reports the MATLAB originals, over its nine sequences on an Intel Xeon E5506 "
+            "(2.13 GHz), at " + ", ".join(parts)
+            + "".join(f"; {name} {paper_numbers.FPS[name]:g} fps (no live run)" for name in missing)
+            + ". Another machine and other frames: context, not a measured ratio."]
+
+
 def _speedup_text(load: dict) -> str:
     speedup = load.get("parallel_speedup")
     return "n/a" if speedup is None else f"{speedup:.2f}x"
@@ -896,6 +916,7 @@ def _markdown(result: dict) -> str:
         lines += ["", "The OTB benchmark's files record the MATLAB originals on Car4 at "
                   + ", ".join(f"{fps:.1f} fps ({name})" for name, fps in result["matlab_fps"].items())
                   + ", on the benchmark's machine (2013), not this one."]
+    lines += _reported_matlab_lines(result)
     if result.get("threads"):
         lines += ["", "## Thread set-ups (fresh process each, median of interleaved runs)", "",
                   "| set-up | numba threads | fps | CPU ms / frame | runs (fps) |", "|---|---:|---:|---:|---|"]

@@ -102,3 +102,17 @@ def test_bench_writes_out_figures_by_default_not_the_committed_report():
 
     assert bench.DEFAULT_OUT == REPO_ROOT / "out" / "figures"
     assert "out/" in (REPO_ROOT / ".gitignore").read_text().splitlines(), "out/ must be git-ignored"
+
+
+def test_bench_sets_the_lineage_beside_the_papers_matlab_fps():
+    from experiments import bench
+
+    rows = [{"sequence": "Car4", "tracker": f"IVT {bench.LINEAGE_SUFFIX}", "fps_tracking": 32.82},
+            {"sequence": "synth-01", "tracker": f"L1 {bench.LINEAGE_SUFFIX}", "fps_tracking": 50.0},
+            {"sequence": "Car4", "tracker": "OpenCV TrackerMIL", "fps_tracking": 20.0}]
+    (line,) = [text for text in bench._reported_matlab_lines({"end_to_end": rows}) if text]
+    # Table II's IVT column is 16.41 fps; L1 ran on another sequence only, so it has no live run on Car4
+    assert "IVT 16.41 fps (live here: 32.8, 2x)" in line
+    assert "LSK 6.57 fps (no live run)" in line and "L1 0.28 fps (no live run)" in line
+    assert "MIL" not in line and "KCF" not in line
+    assert bench._reported_matlab_lines({"end_to_end": rows[1:]}) == []
