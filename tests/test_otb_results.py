@@ -308,3 +308,19 @@ def test_real_ivt_and_asla_conversion_reproduce_the_first_box_exactly():
         np.testing.assert_array_equal(result.boxes[0], biker[0])
     tiger = read_otb_result(REAL_RESULTS / "tiger1_MEEM.mat")
     assert (tiger.start_frame, tiger.anno_begin, tiger.offset) == (6, 1, 5)
+
+
+def test_has_otb_results_needs_a_folder_with_mat_results(tmp_path):
+    """A folder counts as OTB results only when it is a folder and holds ``<Seq>_<Tracker>.mat``
+    files: an empty folder, one of text results, or a path that is no folder does not."""
+    import scipy.io
+
+    from nrmlc.workbench.otb_results import has_otb_results
+
+    assert not has_otb_results(tmp_path)
+    (tmp_path / "Car4.txt").write_text("1,2,3,4\n")
+    assert not has_otb_results(tmp_path)
+    assert not has_otb_results(tmp_path / "missing")
+    scipy.io.savemat(tmp_path / "Car4_IVT.mat", {"results": np.zeros((1, 1))})
+    assert has_otb_results(tmp_path)
+    assert not has_otb_results(tmp_path / "Car4_IVT.mat")
