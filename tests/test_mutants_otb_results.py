@@ -297,16 +297,6 @@ def test_unknown_tracker_of_a_folder_without_results_says_none(tmp_path):
         select_trackers(tmp_path, ["KCF"])
 
 
-# -- template sizes ----------------------------------------------------------------------------
-
-def test_only_the_first_two_entries_of_a_template_size_are_read():
-    # Both conversions take template_size[:2] ((w, h), (rows, cols)) of whatever they are given.
-    ivt = [[100.0, 50.0, 1.0, 0.25, -0.5, 2.0]]
-    np.testing.assert_array_equal(ivt_affine_boxes(ivt, (32, 24, 7)), [[81.0, 34.0, 38.0, 32.0]])
-    l1 = [[1.5, 0.25, -0.5, 2.0, 10.0, 20.0]]
-    np.testing.assert_array_equal(l1_affine_boxes(l1, np.array([8, 4, 7])), [[22.0, 12.0, 3.0, 12.0]])
-
-
 # -- the fields of a result ----------------------------------------------------------------------
 
 @pytest.mark.parametrize("fps, read", [(0.0, None), (-1.0, None), (0.5, 0.5), (1.0, 1.0), (MAX_FPS, MAX_FPS),
