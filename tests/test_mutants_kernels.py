@@ -281,3 +281,22 @@ def test_template_gram_accepts_kept_at_its_edges():
     np.testing.assert_allclose(gram, templates @ templates.T, atol=1e-12)
     with refused("templates must have dtype float32 or float64, got int64"):
         template_gram(np.zeros((3, 4), np.int64))
+
+
+# -- distance._thread_pool: the product blocks' workers ------------------------------------------
+
+def test_thread_pool_is_kept_per_count_and_rebuilt_when_the_count_changes():
+    """One pool per worker count, reused while the count stays, rebuilt (the old one shut down)
+    when it changes; its workers are named ``nrmlc-gemm`` so thread dumps and profiles show them.
+    Counts 3 and 4 are ones the tracker never asks for here, so no earlier pool is reused."""
+    import threading
+
+    from nrmlc.kernels import distance
+
+    three = distance._thread_pool(3)
+    assert distance._thread_pool(3) is three and three._max_workers == 3
+    four = distance._thread_pool(4)
+    assert four is not three and four._max_workers == 4 and distance._thread_pool(4) is four
+    assert three._shutdown
+    name = four.submit(lambda: threading.current_thread().name).result(timeout=60)
+    assert name.startswith("nrmlc-gemm_")
