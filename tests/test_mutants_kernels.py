@@ -300,3 +300,21 @@ def test_thread_pool_is_kept_per_count_and_rebuilt_when_the_count_changes():
     assert three._shutdown
     name = four.submit(lambda: threading.current_thread().name).result(timeout=60)
     assert name.startswith("nrmlc-gemm_")
+
+
+def test_one_blas_thread_holds_blas_to_one_thread_inside_and_restores_it():
+    """The products' guard: inside ``_one_blas_thread`` every BLAS library runs one thread (why:
+    :func:`nrmlc.config.set_threads`), and the caller's count comes back on leaving."""
+    from threadpoolctl import threadpool_info, threadpool_limits
+
+    from nrmlc.kernels import distance
+
+    def blas_threads():
+        return [entry["num_threads"] for entry in threadpool_info() if entry["user_api"] == "blas"]
+
+    with threadpool_limits(limits=2, user_api="blas"):
+        if not blas_threads() or min(blas_threads()) < 2:
+            pytest.skip("numpy's BLAS cannot run two threads in this process")
+        with distance._one_blas_thread():
+            assert set(blas_threads()) == {1}
+        assert min(blas_threads()) == 2
