@@ -162,7 +162,8 @@ def _combine_arguments():
                 constrained=False, n_iterations=2)
 
 
-@pytest.mark.parametrize("change, message", [
+#: (change to the arguments, the whole refusal) of combine_dictionaries.
+COMBINE_REFUSALS = [
     (dict(coefficients=np.zeros((N_CANDIDATES, 2, K_MAX), dtype=np.float32)),
      "coefficients must have dtype float64, got float32"),
     (dict(coefficients=np.zeros((N_CANDIDATES, 2 * K_MAX))), "coefficients must be 3-D, got shape (4, 10)"),
@@ -176,10 +177,7 @@ def _combine_arguments():
     (dict(constrained=1), "constrained must be a bool, got 1"),
     (dict(n_iterations=-1), "n_iterations must be >= 0, got -1"),
     (dict(n_iterations=2.0), "n_iterations must be an integer, got 2.0"),
-], ids=lambda value: str(value)[:40])
-def test_combine_refusals_name_the_argument(change, message):
-    with refused(message):
-        combine_dictionaries(**{**_combine_arguments(), **change})
+]
 
 
 @pytest.mark.parametrize("n_positive", [0, N_TEMPLATES])
@@ -220,7 +218,8 @@ def test_code_candidates_upper_bounds_refused_before_any_kernel_runs(change, mes
         code_candidates(**{**_fused_arguments(), **change})
 
 
-@pytest.mark.parametrize("change, message", [
+#: The same for code_candidates.
+FUSED_REFUSALS = [
     (dict(candidates=np.zeros((N_CANDIDATES, DIM), dtype=np.int64)),
      "candidates must have dtype float32 or float64, got int64"),
     (dict(candidates=np.zeros(DIM, dtype=np.float32)), "candidates must be 2-D, got shape (8,)"),
@@ -250,10 +249,17 @@ def test_code_candidates_upper_bounds_refused_before_any_kernel_runs(change, mes
     (dict(constrained="yes"), "constrained must be a bool, got 'yes'"),
     (dict(n_iterations=-1), "n_iterations must be >= 0, got -1"),
     (dict(n_iterations=None), "n_iterations must be an integer, got None"),
-], ids=lambda value: str(value)[:40])
-def test_code_candidates_refusals_name_the_argument(change, message):
+]
+
+
+@pytest.mark.parametrize("call, arguments, change, message",
+                         [pytest.param(combine_dictionaries, _combine_arguments, *case, id=f"combine-{str(case[0])[:30]}")
+                          for case in COMBINE_REFUSALS]
+                         + [pytest.param(code_candidates, _fused_arguments, *case, id=f"fused-{str(case[0])[:30]}")
+                            for case in FUSED_REFUSALS])
+def test_combine_and_code_candidates_refusals_name_the_argument(call, arguments, change, message):
     with refused(message):
-        code_candidates(**{**_fused_arguments(), **change})
+        call(**{**arguments(), **change})
 
 
 @pytest.mark.parametrize("n_positive", [0, N_TEMPLATES])
