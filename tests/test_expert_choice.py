@@ -69,7 +69,7 @@ def test_the_study_reports_the_partner_and_the_choice(tmp_path, capsys):
     assert code == 0
     names = [row["name"] for row in json.loads(out.read_text())["variants"]]
     assert names == ["partner alone",
-                     "the choice (memory 0.95, blend at IoU >= 0.5, size held 0.7 under eps_pos* >= 0.15)"]
+                     "the choice (memory 0.95, blend at IoU >= 0.5, size held 0.7 under eps_pos* >= 0.15, by error)"]
     assert "the choice" in capsys.readouterr().out
 
 
@@ -90,7 +90,7 @@ def test_the_default_s_two_experts_run_alone_and_chosen_give_the_default(tmp_pat
     assert code == 0
     document = json.loads(out.read_text())
     rows = {row["name"]: row for row in document["variants"]}
-    choice = "the choice (memory 0.95, blend at IoU >= 0.5, size held 0.7 under eps_pos* >= 0.15)"
+    choice = "the choice (memory 0.95, blend at IoU >= 0.5, size held 0.7 under eps_pos* >= 0.15, by error)"
     assert list(rows) == ["partner alone", "own alone", choice]
     assert rows[choice]["per_seed"] == document["baseline_per_seed"]
     assert any(rows[name]["per_seed"] != document["baseline_per_seed"] for name in ("partner alone", "own alone"))

@@ -198,3 +198,33 @@ def test_move_to_moves_both_experts(sequence):
 def test_bad_values_name_the_parameter(changes, name):
     with pytest.raises(ParameterError, match=name):
         TrackerParams(**changes)
+
+
+@pytest.mark.parametrize("eyes, choice", [("gradient", "margin"), ("gradient", "error"), ("colour", "margin")])
+def test_a_partner_with_other_eyes_is_its_single_run_chosen_offline(sequence, eyes, choice):
+    """The study's method (round 80): a pair whose partner sees otherwise is, to the bit, its two
+    experts run alone and chosen offline (experiments.development.expert_choice), whatever the
+    criterion."""
+    from experiments.development.expert_choice import chosen_boxes
+
+    pair = _run(sequence, second_expert="every_frame", partner_eyes=eyes, expert_choice=choice, expert_memory=0.0,
+                expert_blend_iou=0.5, unrecognised_size_share=0.7)
+    own = _run(sequence)
+    partner = _run(sequence, update_interval=1, eyes=eyes)
+    boxes, chosen = chosen_boxes(own, partner, 0.0, 0.5, 0.7, 0.15, choice)
+    assert chosen[1:].sum() > 0 and not np.array_equal(own.boxes, partner.boxes)
+    np.testing.assert_array_equal(pair.boxes, boxes)
+    np.testing.assert_array_equal(pair.diagnostics["expert"][1:], chosen[1:])
+
+
+def test_the_margin_does_not_change_with_an_expert_s_scale():
+    """The margin compares eps_pos* / (eps_pos* + eps_neg*): an expert whose errors are all ten
+    times larger scores the same; 1/2 where both errors are 0."""
+    from nrmlc.tracker.experts import expert_scores
+
+    errors, negatives = np.array([0.02, 0.3]), np.array([0.06, 0.5])
+    margins = expert_scores(errors, negatives, "margin")
+    np.testing.assert_allclose(margins, [0.25, 0.375])
+    np.testing.assert_allclose(expert_scores(errors * [1, 10], negatives * [1, 10], "margin"), margins)
+    assert expert_scores(np.zeros(2), np.zeros(2), "margin").tolist() == [0.5, 0.5]
+    assert expert_scores(errors, negatives, "error") is errors

@@ -47,13 +47,13 @@ from experiments.development.screen import (_report, add_run_options, add_target
 from nrmlc.errors import NrmlcError
 from nrmlc.workbench.run_cache import RunCache
 from nrmlc.geometry import box_to_state
-from nrmlc.tracker.experts import choose_expert, experts_output
+from nrmlc.tracker.experts import choose_expert, expert_scores, experts_output
 from nrmlc.tracker.loop import TrackResult
 from nrmlc.tracker.params import TrackerParams
 
 
 def chosen_boxes(own: TrackResult, partner: TrackResult, memory: float, blend_iou: float = 1.0,
-                 held_share: float = 0.0, gate: float = 0.15) -> tuple[np.ndarray, np.ndarray]:
+                 held_share: float = 0.0, gate: float = 0.15, choice: str = "error") -> tuple[np.ndarray, np.ndarray]:
     """The frame-by-frame choice between two runs of one sequence, as the tracker makes it.
 
     Parameters
@@ -69,6 +69,10 @@ def chosen_boxes(own: TrackResult, partner: TrackResult, memory: float, blend_io
         Where neither run's eps_pos* is under ``gate``, the output's log size moves ``held_share``
         of the way to the last recognised output's (``unrecognised_size_share`` and
         ``unrecognised_gate``; a share of 0, the default here: never).
+    choice : {'error', 'margin'}
+        What the choice and the blend compare (``expert_choice``,
+        :func:`nrmlc.tracker.experts.expert_scores`; the margin also reads
+        ``diagnostics["error_negative"]``).
 
     Returns
     -------
@@ -78,17 +82,19 @@ def chosen_boxes(own: TrackResult, partner: TrackResult, memory: float, blend_io
     chosen : (n_frames,) int64
         1 where the partner is the chosen expert, 0 elsewhere.
     """
-    boxes, chosen, _ = _choose(own, partner, memory, blend_iou, held_share, gate)
+    boxes, chosen, _ = _choose(own, partner, memory, blend_iou, held_share, gate, choice)
     return boxes, chosen
 
 
 def _choose(own: TrackResult, partner: TrackResult, memory: float, blend_iou: float,
-            held_share: float, gate: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+            held_share: float, gate: float, choice: str = "error") -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """:func:`chosen_boxes`, and (n_frames,) bool: where the output is neither run's box (the blend,
     or a held size)."""
     if len(own.boxes) != len(partner.boxes):
         raise NrmlcError(f"the two runs have {len(own.boxes)} and {len(partner.boxes)} frames")
     errors = np.stack([own.diagnostics["error_positive"], partner.diagnostics["error_positive"]], axis=1)
+    negative_errors = (np.stack([own.diagnostics["error_negative"], partner.diagnostics["error_negative"]], axis=1)
+                       if choice == "margin" else errors)
     average = np.zeros(2)
     chosen = np.zeros(len(own.boxes), dtype=np.int64)
     boxes = np.array(own.boxes, dtype=np.float64)
@@ -96,18 +102,19 @@ def _choose(own: TrackResult, partner: TrackResult, memory: float, blend_iou: fl
     recognised_log_size = np.log(boxes[0, 2:])
     params = TrackerParams(expert_blend_iou=blend_iou, unrecognised_size_share=held_share, unrecognised_gate=gate)
     for index in range(1, len(errors)):
-        average, chosen[index] = choose_expert(average, errors[index], memory)
+        scores = expert_scores(errors[index], negative_errors[index], choice)
+        average, chosen[index] = choose_expert(average, scores, memory)
         boxes[index], recognised_log_size, changed[index] = experts_output(
             np.stack([own.boxes[index], partner.boxes[index]]), errors[index], chosen[index], recognised_log_size,
-            params)
+            params, scores)
     return boxes, chosen, changed
 
 
 def _chosen_run(own: TrackResult, partner: TrackResult, memory: float, blend_iou: float,
-                held_share: float, gate: float, patch_size: int) -> TrackResult:
+                held_share: float, gate: float, patch_size: int, choice: str = "error") -> TrackResult:
     """The choice as a run: each frame's box and state from the run chosen on it, or the blend's or
     the held size's (its state at the own expert's ``patch_size``, as the tracker makes it)."""
-    boxes, chosen, changed = _choose(own, partner, memory, blend_iou, held_share, gate)
+    boxes, chosen, changed = _choose(own, partner, memory, blend_iou, held_share, gate, choice)
     states = np.where(chosen[:, None] == 1, partner.states, own.states)
     states[changed] = box_to_state(boxes[changed], patch_size)
     return TrackResult(boxes, states)
@@ -130,6 +137,9 @@ def main(argv=None) -> int:
     parser.add_argument("--unrecognised-gate", type=float, default=TrackerParams().unrecognised_gate,
                         help="the eps_pos* at or above which a run does not recognise the target (default: the "
                              "default's unrecognised_gate)")
+    parser.add_argument("--choice", choices=TrackerParams.choices("expert_choice"),
+                        default=TrackerParams().expert_choice,
+                        help="what the choice and the blend compare (expert_choice; default: the default's)")
     add_run_options(parser)
     args = parser.parse_args(argv)
     try:
@@ -161,7 +171,7 @@ def main(argv=None) -> int:
     own_runs = default_runs if own == TrackerParams() else runs_of(own)
     partner_runs = runs_of(partner)
     choices = [_chosen_run(mine, other, args.memory, args.blend_iou, args.held_share, args.unrecognised_gate,
-                           own.patch_size)
+                           own.patch_size, args.choice)
                for mine, other in zip(own_runs, partner_runs)]
     named = [("partner alone", partner, partner_runs)]
     if own != TrackerParams():
@@ -169,7 +179,7 @@ def main(argv=None) -> int:
     blend = "" if args.blend_iou >= 1 else f", blend at IoU >= {args.blend_iou:g}"
     if args.held_share > 0:
         blend += f", size held {args.held_share:g} under eps_pos* >= {args.unrecognised_gate:g}"
-    named.append((f"the choice (memory {args.memory:g}{blend})", partner, choices))
+    named.append((f"the choice (memory {args.memory:g}{blend}, by {args.choice})", partner, choices))
     base_measures = run_measures(default_runs, default_specs)
     base = overlaps_of(base_measures)
     rows = []

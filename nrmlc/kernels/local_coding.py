@@ -110,7 +110,7 @@ def _run(local, atoms, atom_gram, k, ridge, histogram, histogram_sums, occlusion
     dots = np.empty((n * n_local, atoms.shape[0]), dtype=np.float32)
     with _one_blas_thread():
         np.matmul(local.reshape(n * n_local, dim), atoms.T.astype(np.float32), out=dots)
-    dots = dots.reshape(n, n_local, -1)
+    dots = dots.reshape(n, n_local, atoms.shape[0])
     out = dict(neighbours=np.empty((n, n_local, k), dtype=np.int64), codes=np.empty((n, n_local, k)),
                errors=np.empty((n, n_local)), overlap=np.zeros(n), n_occluded=np.zeros(n, dtype=np.int64))
     _code_local_patches(dots, atom_gram, np.ascontiguousarray(np.diag(atom_gram)), np.array([k], dtype=np.int64),

@@ -31,13 +31,13 @@ import numpy as np
 
 from nrmlc.data.image import as_gray_frame
 from nrmlc.errors import ParameterError
-from nrmlc.geometry import MIN_BOX_SIZE, box_to_state, clamp_states, clip_initial_box, state_to_affine, state_to_box
+from nrmlc.geometry import MIN_BOX_SIZE, box_to_state, clamp_states, clip_initial_box, state_to_box
 from nrmlc.kernels.coding import code_candidates
 from nrmlc.kernels.distance import candidate_template_dots, template_gram
-from nrmlc.kernels.warp import warp_patches
 from nrmlc.tracker import redetect
 from nrmlc.tracker.brightness import levelled
 from nrmlc.tracker.concurrency import OneCallAtATime
+from nrmlc.tracker.eyes import ERROR_SCALE, opponent_planes, seen
 from nrmlc.tracker.generative import GenerativeTerm
 from nrmlc.tracker.params import TrackerParams, resolve_params
 from nrmlc.tracker.records import Coding, FrameResult
@@ -90,6 +90,12 @@ class NRMLCTracker(OneCallAtATime):
         self.templates: np.ndarray | None = None
         self.template_gram: np.ndarray | None = None
         self.template_sq_norms: np.ndarray | None = None
+        self.colour: np.ndarray | None = None
+
+    @property
+    def sees_colour(self) -> bool:
+        """Whether the tracker reads colour: give it the frames in colour, not gray."""
+        return self.params.eyes == "colour"
 
     # -- the got10k interface ----------------------------------------------------------------
     def init(self, image, box) -> None:
@@ -99,6 +105,7 @@ class NRMLCTracker(OneCallAtATime):
             frame = as_gray_frame(image)
             box = clip_initial_box(box, frame.shape)
             p = self.params
+            self.colour = opponent_planes(image) if self.sees_colour else None
             self.rng = np.random.default_rng(self.seed)
             self.frame_shape = frame.shape
             self.state = box_to_state(box, p.patch_size)
@@ -109,7 +116,7 @@ class NRMLCTracker(OneCallAtATime):
             positives = self._sample_positives(frame, self.state)
             self._set_templates(positives, self._sample_negatives(frame, self.state, first=True))
             self.generative = None
-            if p.generative_weight > 0:
+            if p.generative_weight > 0 and p.eyes == "gray":  # the generative term models gray local patches
                 self.generative = GenerativeTerm(self.rng, self.patches(frame, self.state[None, :])[0], p)
             self.frame_index = 0
             self.last = None
@@ -131,6 +138,7 @@ class NRMLCTracker(OneCallAtATime):
                 raise ParameterError(f"frame is {frame.shape[1]}x{frame.shape[0]} but init() saw "
                                      f"{self.frame_shape[1]}x{self.frame_shape[0]}")
             frame = levelled(frame, self.first_frame_mean, self.params)
+            self.colour = opponent_planes(image) if self.sees_colour else None
             self.frame_index += 1
             result, coding, best = self.step(frame)
             estimate_patch = coding.patches[best][None, :]
@@ -203,16 +211,17 @@ class NRMLCTracker(OneCallAtATime):
         return clamp_states(states, self.frame_shape, MIN_BOX_SIZE, p.patch_size)
 
     def patches(self, frame: np.ndarray, states: np.ndarray) -> np.ndarray:
-        """The patch vectors the tracker codes for ``states`` (n, 6) in ``frame`` (as ``update``
-        sees it): (n, patch_size**2) float32, unit rows."""
-        return warp_patches(frame, np.ascontiguousarray(state_to_affine(states)), self.params.patch_size)
+        """The vectors the tracker codes for ``states`` (n, 6) in ``frame`` (as ``update`` sees
+        it): (n, d) float32 unit rows, in the expert's eyes (:mod:`nrmlc.tracker.eyes`; the gray
+        patch: d = patch_size**2)."""
+        return seen(frame, states, self.params.patch_size, self.params.eyes, self.colour)
 
     def encode(self, candidates: np.ndarray) -> Coding:
         """Code candidate vectors on the current templates (Algorithm 1 for each) and score them.
 
         Parameters
         ----------
-        candidates : (n_candidates, patch_size**2) float32, unit-norm rows
+        candidates : (n_candidates, d) float32, unit-norm rows (:meth:`patches`)
 
         Returns
         -------
@@ -225,6 +234,9 @@ class NRMLCTracker(OneCallAtATime):
                                 np.asarray(p.dictionary_sizes, dtype=np.int64), len(self.positive_templates),
                                 ridge_c, ridge_w, p.coding == "constrained", p.n_iterations)
         error_positive, error_negative = coded["error_positive"], coded["error_negative"]
+        scale = ERROR_SCALE[p.eyes]
+        if scale != 1.0:  # in the gray patch's units, which every threshold reads
+            error_positive, error_negative = error_positive / scale, error_negative / scale
         sign = -1.0 if p.confidence == "corrected" else 1.0
         log_confidence = sign * p.alpha * (error_positive - error_negative)
         similarity = None

@@ -33,6 +33,12 @@ class ExpertParams(CheckedParams):
     second_expert : {'every_frame', 'off'}
         'every_frame': a second expert that updates its templates every frame; 'off': one tracker
         (the paper).
+    partner_eyes : {'gray', 'gradient', 'colour'}
+        What the second expert sees (:mod:`nrmlc.tracker.eyes`).
+    expert_choice : {'error', 'margin'}
+        What the choice and the blend compare: 'error', each expert's eps_pos* (in the gray
+        patch's units); 'margin', its eps_pos* / (eps_pos* + eps_neg*), which no scale of an
+        expert's space changes (:func:`expert_scores`).
     expert_memory : float
         The weight of the past in each expert's average eps_pos* (0.95: about 20 frames).
     expert_blend_iou : float
@@ -48,14 +54,38 @@ class ExpertParams(CheckedParams):
     """
 
     second_expert: Literal["every_frame", "off"] = "every_frame"
+    partner_eyes: Literal["gray", "gradient", "colour"] = "gray"
+    expert_choice: Literal["error", "margin"] = "error"
     expert_memory: float = bounded(0.95, 0, 1, high_open=True)
     expert_blend_iou: float = bounded(0.5, 0, 1)
     unrecognised_size_share: float = bounded(0.7, 0, 1)
     unrecognised_gate: float = bounded(0.15, 0, 1, low_open=True)
 
     def partner_params(self):
-        """The second expert's parameters: these with an update every frame and no pair."""
-        return self.replace(second_expert="off", update_interval=1)
+        """The second expert's parameters: these with an update every frame, its own eyes and no pair."""
+        return self.replace(second_expert="off", update_interval=1, eyes=self.partner_eyes)
+
+
+def expert_scores(errors: np.ndarray, negative_errors: np.ndarray, choice: str) -> np.ndarray:
+    """What the pair compares of its experts on one frame (lower is better).
+
+    Parameters
+    ----------
+    errors, negative_errors : (n_experts,) float64
+        Each expert's eps_pos* and eps_neg* of its estimate.
+    choice : {'error', 'margin'}
+        ``expert_choice``.
+
+    Returns
+    -------
+    scores : (n_experts,) float64
+        ``errors`` for 'error'; for 'margin' ``errors / (errors + negative_errors)``, in [0, 1]
+        (1/2 where both are 0: the expert tells the target from nothing).
+    """
+    if choice == "error":
+        return errors
+    total = errors + negative_errors
+    return np.where(total > 0, errors / np.where(total > 0, total, 1.0), 0.5)
 
 
 def choose_expert(average: np.ndarray, errors: np.ndarray, memory: float) -> tuple[np.ndarray, int]:
@@ -134,7 +164,7 @@ def held_size(box: np.ndarray, recognised_log_size: np.ndarray, share: float) ->
 
 
 def experts_output(boxes: np.ndarray, errors: np.ndarray, chosen: int, recognised_log_size: np.ndarray,
-                   params: ExpertParams) -> tuple[np.ndarray, np.ndarray, bool]:
+                   params: ExpertParams, scores: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, bool]:
     """What the pair reports on a frame: the chosen expert's box, or the two's blend where they
     agree (:func:`blend_experts`); where neither expert's eps_pos* is under ``unrecognised_gate``,
     with its size moved toward the last recognised output's (:func:`held_size`).
@@ -150,6 +180,8 @@ def experts_output(boxes: np.ndarray, errors: np.ndarray, chosen: int, recognise
     recognised_log_size : (2,) float64
         log(w), log(h) of the last output whose frame an expert recognised.
     params : ExpertParams
+    scores : (2,) float64, optional
+        What the blend weighs the experts by (:func:`expert_scores`; default ``errors``).
 
     Returns
     -------
@@ -160,7 +192,7 @@ def experts_output(boxes: np.ndarray, errors: np.ndarray, chosen: int, recognise
     moved : bool
         Whether ``box`` is the blend or a held size rather than ``boxes[chosen]``.
     """
-    box = blend_experts(boxes, errors, params.expert_blend_iou)
+    box = blend_experts(boxes, errors if scores is None else scores, params.expert_blend_iou)
     moved = box is not None
     if box is None:
         box = boxes[chosen]
@@ -220,6 +252,11 @@ class ExpertPair(OneCallAtATime):
         return self.experts[0].initial_box
 
     @property
+    def sees_colour(self) -> bool:
+        """Whether an expert reads colour: give the pair the frames in colour, not gray."""
+        return any(expert.sees_colour for expert in self.experts)
+
+    @property
     def state(self) -> np.ndarray | None:
         """The output's state (the first expert's at ``init``)."""
         return self.experts[0].state if self.last is None else self.last.state
@@ -243,10 +280,13 @@ class ExpertPair(OneCallAtATime):
                 expert.update(image)
             results = [expert.last for expert in self.experts]
             errors = np.array([result.error_positive for result in results])
-            self.average_errors, chosen = choose_expert(self.average_errors, errors, self.params.expert_memory)
+            scores = expert_scores(errors, np.array([result.error_negative for result in results]),
+                                   self.params.expert_choice)
+            self.average_errors, chosen = choose_expert(self.average_errors, scores, self.params.expert_memory)
             last = results[0] if chosen == 0 else dataclasses.replace(results[1], expert=1)
             box, self.recognised_log_size, moved = experts_output(
-                np.stack([result.box for result in results]), errors, chosen, self.recognised_log_size, self.params)
+                np.stack([result.box for result in results]), errors, chosen, self.recognised_log_size, self.params,
+                scores)
             if moved:
                 last = dataclasses.replace(last, box=box, state=box_to_state(box, self.params.patch_size))
             self.last = last

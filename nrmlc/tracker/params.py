@@ -20,6 +20,7 @@ from nrmlc.config import PATCH_SIZE
 from nrmlc.errors import ParameterError
 from nrmlc.tracker.brightness import BrightnessParams
 from nrmlc.tracker.experts import ExpertParams
+from nrmlc.tracker.eyes import EyesParams
 from nrmlc.tracker.generative import LOCAL_SIZE, N_ATOMS, GenerativeParams
 from nrmlc.tracker.motion_floor import MotionFloorParams
 from nrmlc.tracker.motion_floor import translation_sigmas as _translation_sigmas
@@ -183,7 +184,7 @@ class PaperParams(CheckedParams):
 
 
 #: Each group of :class:`TrackerParams`: the paper's, then the additions' (in the order they act).
-GROUPS: dict[str, type] = {"paper": PaperParams, "brightness": BrightnessParams, "motion floor": MotionFloorParams,
+GROUPS: dict[str, type] = {"paper": PaperParams, "brightness": BrightnessParams, "eyes": EyesParams, "motion floor": MotionFloorParams,
                            "re-detection": RedetectionParams, "generative term": GenerativeParams,
                            "experts": ExpertParams}
 
@@ -191,7 +192,7 @@ GROUPS: dict[str, type] = {"paper": PaperParams, "brightness": BrightnessParams,
 STAGE_ORDER: tuple[str, ...] = (
     "n_particles", "motion_sigmas", "propagation", "translation_noise", "translation_floor",
     "n_positive", "n_negative", "template_sampling", "positive_radius", "negative_radius", "positive_sigma",
-    "negative_push", "patch_size", "brightness",
+    "negative_push", "patch_size", "brightness", "eyes",
     "dictionary_sizes", "coding", "lam", "beta", "n_iterations",
     "alpha", "confidence",
     "update_interval", "max_positive", "update_error_threshold", "occlusion_detection", "occlusion_max_negative",
@@ -200,13 +201,14 @@ STAGE_ORDER: tuple[str, ...] = (
     "redetect_weak_accept",
     "generative_weight", "generative_candidates", "generative_neighbours", "generative_lam", "generative_interval",
     "generative_step",
-    "second_expert", "expert_memory", "expert_blend_iou", "unrecognised_size_share", "unrecognised_gate",
+    "second_expert", "partner_eyes", "expert_choice", "expert_memory", "expert_blend_iou", "unrecognised_size_share",
+    "unrecognised_gate",
 )
 
 
 @dataclass(frozen=True)
-class TrackerParams(ExpertParams, GenerativeParams, RedetectionParams, MotionFloorParams, BrightnessParams,
-                    PaperParams):
+class TrackerParams(ExpertParams, GenerativeParams, RedetectionParams, MotionFloorParams, EyesParams,
+                    BrightnessParams, PaperParams):
     """All parameters of the NRMLC tracker: :class:`PaperParams` and the additions' groups
     (:data:`GROUPS`), one flat set of fields, validated on construction.
 
