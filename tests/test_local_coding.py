@@ -99,3 +99,16 @@ def test_bad_input_is_refused_with_its_name(change, message):
     atoms = arguments["atoms"]
     with pytest.raises(ParameterError, match=message):
         code_local_patches(arguments["local"], atoms, atoms @ atoms.T, arguments["k"], arguments["ridge"])
+
+
+@pytest.mark.parametrize("shape", [(0, 12, 16), (3, 0, 16)])
+def test_no_candidates_or_no_local_patches_give_empty_results(shape):
+    """Nothing to code is an empty result of the right shapes, not numpy's reshape error."""
+    rng = np.random.default_rng(4)
+    atoms = _unit(rng, (10, 16), np.float64)
+    gram = atoms @ atoms.T
+    local = np.zeros(shape, np.float32)
+    neighbours, codes, errors = code_local_patches(local, atoms, gram, 3, 1.0)
+    assert neighbours.shape == codes.shape == shape[:2] + (3,) and errors.shape == shape[:2]
+    matched = match_local_histogram(local, atoms, gram, 3, 1.0, np.zeros((shape[1], 10)), 0.5)
+    assert matched["overlap"].shape == matched["n_occluded"].shape == (shape[0],)
