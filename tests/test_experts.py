@@ -200,7 +200,7 @@ def test_bad_values_name_the_parameter(changes, name):
         TrackerParams(**changes)
 
 
-@pytest.mark.parametrize("eyes, choice", [("gradient", "margin"), ("gradient", "error"), ("colour", "margin")])
+@pytest.mark.parametrize("eyes, choice", [("gradient", "margin"), ("gradient", "error")])
 def test_a_partner_with_other_eyes_is_its_single_run_chosen_offline(sequence, eyes, choice):
     """The study's method (round 80): a pair whose partner sees otherwise is, to the bit, its two
     experts run alone and chosen offline (experiments.development.expert_choice), whatever the

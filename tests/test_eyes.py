@@ -9,11 +9,9 @@ import pytest
 from nrmlc import TrackerParams
 from nrmlc.data.image import as_gray_frame
 from nrmlc.errors import ParameterError
-from nrmlc.geometry import box_to_state, state_to_affine
 from nrmlc.kernels.gradient_cells import gradient_cells
-from nrmlc.kernels.warp import warp_patches
 from nrmlc.tracker.algorithm import NRMLCTracker
-from nrmlc.tracker.eyes import ERROR_SCALE, opponent_planes, seen
+from nrmlc.tracker.eyes import ERROR_SCALE
 
 
 def reference_gradient_cells(patch: np.ndarray, side: int, cell: int, bins: int) -> np.ndarray:
@@ -70,47 +68,20 @@ def test_gradient_cells_refuse_bad_input_in_one_line(call, name):
         call()
 
 
-def _frame(rng, colour):
-    image = (rng.random((60, 80, 3)) * 255).astype(np.uint8)
-    return image if colour else image[:, :, 0].copy()
+def _frame(rng):
+    return (rng.random((60, 80, 3)) * 255).astype(np.uint8)
 
 
-def test_opponent_planes_of_bgr_and_of_a_gray_image():
-    image = np.zeros((4, 5, 3), np.uint8)
-    image[..., 2] = 255  # red
-    planes = opponent_planes(image)
-    assert planes.shape == (2, 4, 5) and planes.dtype == np.float32
-    np.testing.assert_allclose(planes[0], 1 / math.sqrt(2), rtol=1e-6)
-    np.testing.assert_allclose(planes[1], 1 / math.sqrt(6), rtol=1e-6)
-    assert opponent_planes(image[..., 0]) is None
-
-
-def test_the_colour_eye_is_the_gray_patch_beside_two_unit_colour_planes():
-    rng = np.random.default_rng(1)
-    image = _frame(rng, colour=True)
-    gray = (image.astype(np.float32) / 255) @ np.array([0.114, 0.587, 0.299], np.float32)
-    states = box_to_state(np.array([[20.0, 15.0, 24.0, 20.0], [10, 10, 30, 30]]), 32)
-    vectors = seen(np.ascontiguousarray(gray), states, 32, "colour", opponent_planes(image))
-    assert vectors.shape == (2, 32 * 32 + 2 * 16 * 16)
-    np.testing.assert_allclose(np.linalg.norm(vectors, axis=1), 1, atol=1e-5)
-    gray_patches = warp_patches(np.ascontiguousarray(gray), np.ascontiguousarray(state_to_affine(states)), 32)
-    np.testing.assert_allclose(vectors[:, :1024] * math.sqrt(3), gray_patches, atol=1e-6)
-    for plane in (slice(1024, 1280), slice(1280, 1536)):
-        np.testing.assert_allclose(np.linalg.norm(vectors[:, plane], axis=1), 1 / math.sqrt(3), atol=1e-5)
-    flat = seen(np.ascontiguousarray(gray), states, 32, "colour", None)  # a gray video: flat colour planes
-    np.testing.assert_allclose(flat[:, 1024:], 1 / 16 / math.sqrt(3), atol=1e-7)
-
-
-@pytest.mark.parametrize("eyes", ["gradient", "colour"])
+@pytest.mark.parametrize("eyes", ["gradient"])
 def test_an_expert_with_other_eyes_codes_its_own_templates_in_gray_units(eyes, monkeypatch):
     """Its templates are vectors of its own eyes; it has no generative term; its errors are its
     own space's divided by the eye's scale."""
     rng = np.random.default_rng(2)
-    image = _frame(rng, colour=True)
+    image = _frame(rng)
     tracker = NRMLCTracker(0, TrackerParams(second_expert="off", eyes=eyes, n_particles=40))
     tracker.init(image, np.array([20.0, 15.0, 24.0, 20.0]))
-    assert tracker.generative is None and tracker.sees_colour == (eyes == "colour")
-    assert tracker.templates.shape[1] == {"gradient": 576, "colour": 1536}[eyes]
+    assert tracker.generative is None
+    assert tracker.templates.shape[1] == 576
     tracker.update(image)
     candidates = tracker.patches(as_gray_frame(image), tracker.particles[:5])
     scaled = tracker.encode(candidates)

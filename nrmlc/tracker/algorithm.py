@@ -37,7 +37,7 @@ from nrmlc.kernels.distance import candidate_template_dots, template_gram
 from nrmlc.tracker import redetect
 from nrmlc.tracker.brightness import levelled
 from nrmlc.tracker.concurrency import OneCallAtATime
-from nrmlc.tracker.eyes import ERROR_SCALE, opponent_planes, seen
+from nrmlc.tracker.eyes import ERROR_SCALE, seen
 from nrmlc.tracker.generative import GenerativeTerm
 from nrmlc.tracker.params import TrackerParams, resolve_params
 from nrmlc.tracker.records import Coding, FrameResult
@@ -90,12 +90,6 @@ class NRMLCTracker(OneCallAtATime):
         self.templates: np.ndarray | None = None
         self.template_gram: np.ndarray | None = None
         self.template_sq_norms: np.ndarray | None = None
-        self.colour: np.ndarray | None = None
-
-    @property
-    def sees_colour(self) -> bool:
-        """Whether the tracker reads colour: give it the frames in colour, not gray."""
-        return self.params.eyes == "colour"
 
     # -- the got10k interface ----------------------------------------------------------------
     def init(self, image, box) -> None:
@@ -105,7 +99,6 @@ class NRMLCTracker(OneCallAtATime):
             frame = as_gray_frame(image)
             box = clip_initial_box(box, frame.shape)
             p = self.params
-            self.colour = opponent_planes(image) if self.sees_colour else None
             self.rng = np.random.default_rng(self.seed)
             self.frame_shape = frame.shape
             self.state = box_to_state(box, p.patch_size)
@@ -138,7 +131,6 @@ class NRMLCTracker(OneCallAtATime):
                 raise ParameterError(f"frame is {frame.shape[1]}x{frame.shape[0]} but init() saw "
                                      f"{self.frame_shape[1]}x{self.frame_shape[0]}")
             frame = levelled(frame, self.first_frame_mean, self.params)
-            self.colour = opponent_planes(image) if self.sees_colour else None
             self.frame_index += 1
             result, coding, best = self.step(frame)
             estimate_patch = coding.patches[best][None, :]
@@ -214,7 +206,7 @@ class NRMLCTracker(OneCallAtATime):
         """The vectors the tracker codes for ``states`` (n, 6) in ``frame`` (as ``update`` sees
         it): (n, d) float32 unit rows, in the expert's eyes (:mod:`nrmlc.tracker.eyes`; the gray
         patch: d = patch_size**2)."""
-        return seen(frame, states, self.params.patch_size, self.params.eyes, self.colour)
+        return seen(frame, states, self.params.patch_size, self.params.eyes)
 
     def encode(self, candidates: np.ndarray) -> Coding:
         """Code candidate vectors on the current templates (Algorithm 1 for each) and score them.

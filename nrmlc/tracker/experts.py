@@ -33,7 +33,7 @@ class ExpertParams(CheckedParams):
     second_expert : {'every_frame', 'off'}
         'every_frame': a second expert that updates its templates every frame; 'off': one tracker
         (the paper).
-    partner_eyes : {'gray', 'gradient', 'colour'}
+    partner_eyes : {'gray', 'gradient'}
         What the second expert sees (:mod:`nrmlc.tracker.eyes`).
     expert_choice : {'error', 'margin'}
         What the choice and the blend compare: 'error', each expert's eps_pos* (in the gray
@@ -54,7 +54,7 @@ class ExpertParams(CheckedParams):
     """
 
     second_expert: Literal["every_frame", "off"] = "every_frame"
-    partner_eyes: Literal["gray", "gradient", "colour"] = "gray"
+    partner_eyes: Literal["gray", "gradient"] = "gray"
     expert_choice: Literal["error", "margin"] = "error"
     expert_memory: float = bounded(0.95, 0, 1, high_open=True)
     expert_blend_iou: float = bounded(0.5, 0, 1)
@@ -250,11 +250,6 @@ class ExpertPair(OneCallAtATime):
     @property
     def initial_box(self) -> np.ndarray | None:
         return self.experts[0].initial_box
-
-    @property
-    def sees_colour(self) -> bool:
-        """Whether an expert reads colour: give the pair the frames in colour, not gray."""
-        return any(expert.sees_colour for expert in self.experts)
 
     @property
     def state(self) -> np.ndarray | None:

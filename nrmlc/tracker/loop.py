@@ -99,9 +99,7 @@ def track_sequence(sequence, params: TrackerParams | None = None, seed: int = 0,
         raise ParameterError(f"n_frames must be an integer >= 1 (or None: all frames), got {n_frames!r}")
     total = len(sequence) if n_frames is None else max(1, min(int(n_frames), len(sequence)))
     box = sequence.init_box if init_box is None else init_box
-    # A tracker that reads colour gets each frame as stored; its gray is the sequence's own.
-    colour = getattr(tracker, "sees_colour", False) and hasattr(sequence, "raw_frame")
-    frames = (sequence.raw_frame(index) for index in range(total)) if colour else iter(sequence)
+    frames = iter(sequence)
     bar = None
     if progress:
         from tqdm import tqdm
