@@ -1,9 +1,10 @@
 """The pair of experts (*ours*; ``second_expert = 'off'`` is the paper): two NRMLC trackers track
 every frame apart, and the pair reports one box.
 
-The second expert has the same parameters and seed but a template update every frame
-(:meth:`ExpertParams.partner_params`), so the two fail on different frames. Each frame's output
-is the estimate of the expert whose recent eps_pos* (an exponential average) is lower; where
+The second expert has the same parameters and seed but a template update every frame and, with
+``partner_eyes``, eyes of its own (:mod:`nrmlc.tracker.eyes`; :meth:`ExpertParams.partner_params`),
+so the two fail on different frames. Each frame's output is the estimate of the expert whose
+recent eps_pos* (an exponential average; or its margin, ``expert_choice``) is lower; where
 their boxes agree, their blend; on a frame neither recognises, the output's size moves toward the
 last recognised output's. Each expert goes on from its own estimate: the choice, the blend and the
 held size change only what is reported. Evidence: docs/DEVIATIONS.md.
