@@ -63,7 +63,7 @@ PARTICLE_COUNTS = (100, 600, 1200)
 REFERENCE_SUBSET = {"regularized": 120, "plain": 60, "constrained": 12}
 MODES = ("regularized", "constrained", "plain")
 #: Switches whose cost the end-to-end bench measures by flipping them (bench_end_to_end).
-FLIPPED_SWITCHES = ("generative_weight", "second_expert")
+FLIPPED_SWITCHES = ("generative_weight", "second_expert", "partner_eyes")
 #: Frames of Car4 for the end-to-end and thread rows; the project's speed target there.
 REAL_FRAMES = 300
 TARGET_FPS = 150.0
@@ -585,6 +585,10 @@ def bench_end_to_end(sequence, n_frames: int | None, rounds: int) -> list[dict]:
     # The second expert's cost: the default with one tracker, or with the pair when the default has one.
     expert = "off" if default.second_expert != "off" else "every_frame"
     variants[f"NRMLC second_expert={expert}"] = default.replace(second_expert=expert)
+    # What the partner's other eyes cost: the pair with the partner's eyes flipped (gray <-> gradient).
+    if default.second_expert != "off":
+        eyes = "gradient" if default.partner_eyes == "gray" else "gray"
+        variants[f"NRMLC partner_eyes={eyes}"] = default.replace(partner_eyes=eyes)
     samples = {name: [] for name in variants}
     samples["OpenCV TrackerMIL"] = []
     from nrmlc.lineage import TRACKERS
