@@ -1,5 +1,7 @@
 """MTT (nrmlc.lineage.mtt) and its L21 APG solver (nrmlc.lineage.l21). Its bad box and
 frame and its tracking are checked with the other template trackers' in test_lineage_template_trackers.py."""
+import dataclasses
+
 import numba
 import numpy as np
 import pytest
@@ -241,3 +243,18 @@ def test_template_step_replaces_the_least_weighted_when_dissimilar():
     np.testing.assert_allclose(tracker.templates, templates, rtol=1e-13)
     np.testing.assert_allclose(tracker.weights, normalize_weights(before * np.exp([0.1, 0.8, 0.0, 0.0]), 0.3))
     np.testing.assert_allclose(np.linalg.norm(tracker.templates, axis=1), 1, rtol=1e-13)
+
+
+def test_template_norm_weight_scales_each_template_to_its_weight():
+    """The L1 tracker's form (``template_norm='weight'``, the departure's switch back): after a
+    template step each template's norm is its weight; the shipped form keeps unit norm."""
+    rng = np.random.default_rng(17)
+    for form in ("unit", "weight"):
+        tracker = MTTTracker(dataclasses.replace(lineage.small_params(MTTTracker), template_norm=form))
+        tracker.init((np.random.default_rng(14).random((40, 50)) * 255).astype(np.uint8), (10, 12, 15, 18))
+        tracker._update_templates(rng.standard_normal(tracker.templates.shape[1]), np.array([0.9, 0.4, -0.2, 0.6]))
+        norms = np.linalg.norm(tracker.templates, axis=1)
+        np.testing.assert_allclose(norms, tracker.weights if form == "weight" else 1.0, rtol=1e-12)
+        assert form == "unit" or norms.max() < 0.5
+    with pytest.raises(ParameterError, match="template_norm"):
+        MTTParams(template_norm="none")

@@ -88,9 +88,11 @@ which can differ from ``rgb2gray`` by one gray level on some pixels).
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Literal
 
 import numpy as np
 
+from nrmlc.errors import ParameterError
 from nrmlc.lineage.checks import bounded, check_weight_cap
 from nrmlc.lineage.l1 import TEMPLATE_SHIFTS, images_angle, normalize_weights, shifted_template_states
 from nrmlc.lineage.l1apg import (TINY, TemplateTracker, TemplateTrackerParams, crop_patches, gray_levels, resample_states, whiten)
@@ -120,10 +122,15 @@ class MTTParams(TemplateTrackerParams):
     theta: float = bounded(0.6, -1.0, 1.0)
     #: ``normalizeWeights.m``'s cap on a template's weight.
     max_weight: float = 0.3
+    #: After each template step the templates are scaled to unit norm ('unit', L1-APG's
+    #: ``normalizeTemplates.m``) or, as the L1 tracker does, to their weights ('weight').
+    template_norm: Literal["unit", "weight"] = "unit"
 
     def check_group(self) -> None:
         super().check_group()
         check_weight_cap(self, "max_weight")
+        if self.template_norm not in ("unit", "weight"):
+            raise ParameterError(f"MTTParams.template_norm must be 'unit' or 'weight', got {self.template_norm!r}")
 
 
 def box_corners(box) -> np.ndarray:
@@ -231,6 +238,9 @@ class MTTTracker(TemplateTracker):
             weights[weakest] = np.median(weights)
             self.templates[weakest] = answer
         self.weights = normalize_weights(weights, p.max_weight)
-        # Unit norm, not the weight (module docstring: with eta 0.01 weighted atoms barely move).
+        # Unit norm by default, not the weight (module docstring: with eta 0.01 weighted atoms barely move).
         norms = np.sqrt(np.einsum("ij,ij->i", self.templates, self.templates)) + TINY
-        self.templates = np.ascontiguousarray(self.templates / norms[:, None])
+        templates = self.templates / norms[:, None]
+        if p.template_norm == "weight":
+            templates *= self.weights[:, None]
+        self.templates = np.ascontiguousarray(templates)
