@@ -113,6 +113,15 @@ def test_readme_is_short_and_has_no_history():
     assert not re.search(r"round [0-9]", text, flags=re.I)
 
 
+def test_the_library_tells_no_history():
+    """No docstring or comment of the package cites a development round (the record does)."""
+    package = README.parent / "nrmlc"
+    cited = [f"{path.relative_to(package.parent)}:{number}" for path in sorted(package.rglob("*.py"))
+             for number, line in enumerate(path.read_text(encoding="utf-8").splitlines(), 1)
+             if re.search(r"round [0-9]", line, flags=re.I)]
+    assert not cited, cited
+
+
 def update(bin_dir: Path) -> None:
     """Rewrite every console block's outputs with what its commands print now."""
     with tempfile.TemporaryDirectory() as folder:

@@ -5,8 +5,6 @@ as.
 - 'gradient': the gradient-orientation cells of that patch (:mod:`nrmlc.kernels.gradient_cells`),
   which keep the target's edges and drop its level and most of its shading.
 
-(A colour eye was measured and not kept: docs/research/rounds/round-80-experts-with-different-eyes.md.)
-
 An expert codes its candidates on its own templates, sampled in its own eyes, exactly as the
 paper codes gray patches. Its reconstruction errors live in its own space; each eye's errors are
 divided by :data:`ERROR_SCALE` so that every threshold on eps_pos* (the update gate, re-detection,
@@ -26,9 +24,8 @@ from nrmlc.kernels.warp import warp_patches
 from nrmlc.tracker.parameter_fields import CheckedParams, fail
 
 #: How much larger each eye's eps_pos* is than the gray patch's on the same frames: the ratio of
-#: their medians for the true box on development half A's colour videos (those round 80 measured
-#: its colour eye on), coded on the first
-#: frame's templates over the first 20 frames, where the gray patch's median (0.088) is nearest
+#: their medians for the true box on development half A's videos stored in colour, coded on the
+#: first frame's templates over the first 20 frames, where the gray patch's median (0.088) is nearest
 #: the update gate (0.1) (``python -m experiments.development.eye_scales``,
 #: ``figures/development/eye_scales.json``). The ratio is not one constant: it is larger where the
 #: errors are smaller, so it is read where the thresholds act.
