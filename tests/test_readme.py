@@ -20,6 +20,7 @@ from __future__ import annotations
 import argparse
 import os
 import re
+import shlex
 import subprocess
 import tempfile
 from pathlib import Path
@@ -74,15 +75,21 @@ def normalise(lines: list[str]) -> list[str]:
     return out
 
 
-#: The Makefile's PORTABLE=1 environment (its LIBRARY_ENV and TARGET_ENV).
-PORTABLE_ENV = {"OPENBLAS_CORETYPE": "Haswell", "NPY_DISABLE_CPU_FEATURES": "X86_V4 AVX512_ICL AVX512_SPR",
-                "OPENCV_IPP": "avx2", "NUMBA_CPU_NAME": "haswell", "NUMBA_CPU_FEATURES": "",
-                "NUMBA_CACHE_DIR": str(ROOT / ".cache" / "numba-portable")}
+def portable_env() -> dict[str, str]:
+    """The environment ``make figures PORTABLE=1`` runs in, read from the Makefile (its
+    ``LIBRARY_ENV``, ``NUMBA_TARGET`` and ``TARGET_NAME`` under PORTABLE)."""
+    makefile = (ROOT / "Makefile").read_text(encoding="utf-8")
+    portable = makefile.split("ifneq ($(PORTABLE),)", 1)[1].split("else", 1)[0]
+    value = {name: re.search(rf"^{name}\s*:=\s*(.+)$", portable, flags=re.M).group(1).strip()
+             for name in ("NUMBA_TARGET", "LIBRARY_ENV", "TARGET_NAME")}
+    env = dict(item.split("=", 1) for item in shlex.split(value["LIBRARY_ENV"]))
+    return {**env, "NUMBA_CPU_NAME": value["NUMBA_TARGET"], "NUMBA_CPU_FEATURES": "",
+            "NUMBA_CACHE_DIR": str(ROOT / ".cache" / f"numba-{value['TARGET_NAME']}")}
 
 
 def run_command(command: str, cwd: Path, bin_dir: Path) -> list[str]:
     env = dict(os.environ, PATH=f"{bin_dir}{os.pathsep}{os.environ.get('PATH', '')}",
-               PYTHONHASHSEED="0", PYTHONUNBUFFERED="1", COLUMNS="100", **PORTABLE_ENV)
+               PYTHONHASHSEED="0", PYTHONUNBUFFERED="1", COLUMNS="100", **portable_env())
     result = subprocess.run(["bash", "-c", command], cwd=cwd, env=env, stdout=subprocess.PIPE,
                             stderr=subprocess.STDOUT, text=True, timeout=900)
     # Whether the kernels were compiled before (the portable target's cache is its own) is not

@@ -93,6 +93,7 @@ def _choose(own: TrackResult, partner: TrackResult, memory: float, blend_iou: fl
     if len(own.boxes) != len(partner.boxes):
         raise NrmlcError(f"the two runs have {len(own.boxes)} and {len(partner.boxes)} frames")
     errors = np.stack([own.diagnostics["error_positive"], partner.diagnostics["error_positive"]], axis=1)
+    # eps_neg* only where the margin reads it (runs may carry eps_pos* alone)
     negative_errors = (np.stack([own.diagnostics["error_negative"], partner.diagnostics["error_negative"]], axis=1)
                        if choice == "margin" else errors)
     average = np.zeros(2)

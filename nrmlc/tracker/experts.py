@@ -95,9 +95,10 @@ def choose_expert(average: np.ndarray, errors: np.ndarray, memory: float) -> tup
     Parameters
     ----------
     average : (2,) float64
-        Each expert's running average of eps_pos* (first, second) before this frame; 0 at the first.
+        Each expert's running average of its score (first, second) before this frame; 0 at the first.
     errors : (2,) float64
-        This frame's eps_pos* of each expert's estimate.
+        This frame's score of each expert's estimate (:func:`expert_scores`: its eps_pos*, or
+        its margin).
     memory : float
         The weight of the past (``expert_memory``), in [0, 1).
 
@@ -244,7 +245,7 @@ class ExpertPair(OneCallAtATime):
         self.params = first.params
         self.seed = first.seed
         self.experts = (first, expert_class(seed, self.params.partner_params()))
-        self.average_errors = np.zeros(2)
+        self.average_scores = np.zeros(2)
         self.recognised_log_size: np.ndarray | None = None
         self.last: FrameResult | None = None
 
@@ -265,7 +266,7 @@ class ExpertPair(OneCallAtATime):
             with warnings.catch_warnings():  # the same frame and box: the first expert has said it all
                 warnings.simplefilter("ignore")
                 second.init(image, box)
-            self.average_errors = np.zeros(2)
+            self.average_scores = np.zeros(2)
             self.recognised_log_size = np.log(np.asarray(box, dtype=np.float64)[2:])
             self.last = None
 
@@ -278,7 +279,7 @@ class ExpertPair(OneCallAtATime):
             errors = np.array([result.error_positive for result in results])
             scores = expert_scores(errors, np.array([result.error_negative for result in results]),
                                    self.params.expert_choice)
-            self.average_errors, chosen = choose_expert(self.average_errors, scores, self.params.expert_memory)
+            self.average_scores, chosen = choose_expert(self.average_scores, scores, self.params.expert_memory)
             last = results[0] if chosen == 0 else dataclasses.replace(results[1], expert=1)
             box, self.recognised_log_size, moved = experts_output(
                 np.stack([result.box for result in results]), errors, chosen, self.recognised_log_size, self.params,

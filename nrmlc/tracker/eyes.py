@@ -19,7 +19,7 @@ from typing import Literal
 import numpy as np
 
 from nrmlc.geometry import state_to_affine
-from nrmlc.kernels.gradient_cells import gradient_cells
+from nrmlc.kernels.gradient_cells import CELL_SIZE, gradient_cells
 from nrmlc.kernels.warp import warp_patches
 from nrmlc.tracker.parameter_fields import CheckedParams, fail
 
@@ -46,8 +46,6 @@ class EyesParams(CheckedParams):
     eyes: Literal["gray", "gradient"] = "gray"
 
     def check_group(self) -> None:
-        from nrmlc.kernels.gradient_cells import CELL_SIZE
-
         if self.eyes == "gradient" and self.patch_size % CELL_SIZE:
             fail("patch_size", f"must be a multiple of {CELL_SIZE} (the gradient cells) when eyes='gradient', "
                                f"got {self.patch_size}")

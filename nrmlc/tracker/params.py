@@ -184,9 +184,9 @@ class PaperParams(CheckedParams):
 
 
 #: Each group of :class:`TrackerParams`: the paper's, then the additions' (in the order they act).
-GROUPS: dict[str, type] = {"paper": PaperParams, "brightness": BrightnessParams, "eyes": EyesParams, "motion floor": MotionFloorParams,
-                           "re-detection": RedetectionParams, "generative term": GenerativeParams,
-                           "experts": ExpertParams}
+GROUPS: dict[str, type] = {"paper": PaperParams, "brightness": BrightnessParams, "eyes": EyesParams,
+                           "motion floor": MotionFloorParams, "re-detection": RedetectionParams,
+                           "generative term": GenerativeParams, "experts": ExpertParams}
 
 #: The fields in the order of the algorithm's stages (the order :meth:`TrackerParams.as_dict` gives).
 STAGE_ORDER: tuple[str, ...] = (
