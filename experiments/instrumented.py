@@ -27,8 +27,8 @@ class RecordingTracker(NRMLCTracker):
 
     probe = None
 
-    def step(self, frame):
-        result, coding, best = super().step(frame)
+    def step(self, frame, particles=None):
+        result, coding, best = super().step(frame, particles)
         self.last_coding: Coding = coding
         return result, coding, best
 

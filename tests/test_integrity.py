@@ -646,10 +646,10 @@ def test_two_threads_on_one_tracker_get_a_clear_error():
     inside, release = threading.Event(), threading.Event()
     real_step = tracker.step
 
-    def slow_step(frame):
+    def slow_step(frame, particles=None):
         inside.set()
         release.wait(10)
-        return real_step(frame)
+        return real_step(frame, particles)
 
     tracker.step = slow_step
     worker = threading.Thread(target=tracker.update, args=(sequence.frame(1),))

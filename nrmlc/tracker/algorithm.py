@@ -124,25 +124,43 @@ class NRMLCTracker(OneCallAtATime):
             ``init`` or ``update`` of this tracker.
         """
         with self._alone("update"):
-            if self.state is None:
-                raise ParameterError("call init(frame, box) before update(frame)")
-            frame = as_gray_frame(image)
-            if frame.shape != self.frame_shape:
-                raise ParameterError(f"frame is {frame.shape[1]}x{frame.shape[0]} but init() saw "
-                                     f"{self.frame_shape[1]}x{self.frame_shape[0]}")
-            frame = levelled(frame, self.first_frame_mean, self.params)
-            self.frame_index += 1
-            result, coding, best = self.step(frame)
-            estimate_patch = coding.patches[best][None, :]
-            if (self.frame_index + 1) % self.params.update_interval == 0:
-                self.update_templates(frame, result, estimate_patch)
-            if self.generative is not None:
-                self.generative.learn(self.frame_index, estimate_patch)
-            return result.box
+            return self.advance(self.prepared_frame(image))
+
+    def prepared_frame(self, image) -> np.ndarray:
+        """``image`` as the tracker sees it: (height, width) float32 gray, levelled
+        (:mod:`~nrmlc.tracker.brightness`); checked against ``init``'s frame."""
+        if self.state is None:
+            raise ParameterError("call init(frame, box) before update(frame)")
+        frame = as_gray_frame(image)
+        if frame.shape != self.frame_shape:
+            raise ParameterError(f"frame is {frame.shape[1]}x{frame.shape[0]} but init() saw "
+                                 f"{self.frame_shape[1]}x{self.frame_shape[0]}")
+        return levelled(frame, self.first_frame_mean, self.params)
+
+    def advance(self, frame: np.ndarray, particles: tuple | None = None) -> np.ndarray:
+        """Track into the next frame, given as :meth:`prepared_frame` returns it; returns the box.
+
+        Parameters
+        ----------
+        frame : (height, width) float32
+        particles : (states (n, 6) float64, candidates (n, d) float32), optional
+            This frame's particles (:meth:`sample_particles`) and what the expert sees of them
+            (:meth:`patches`), where a caller computed them with other experts' in one pass
+            (:class:`~nrmlc.tracker.experts.ExpertPair`); default: sampled and seen here.
+        """
+        self.frame_index += 1
+        result, coding, best = self.step(frame, particles)
+        estimate_patch = coding.patches[best][None, :]
+        if (self.frame_index + 1) % self.params.update_interval == 0:
+            self.update_templates(frame, result, estimate_patch)
+        if self.generative is not None:
+            self.generative.learn(self.frame_index, estimate_patch)
+        return result.box
 
     # -- one frame -----------------------------------------------------------------------------
-    def step(self, frame: np.ndarray) -> tuple[FrameResult, Coding, int]:
-        """Estimate the target in ``frame`` (Algorithm 2, steps 2.1-2.4; no template update).
+    def step(self, frame: np.ndarray, particles: tuple | None = None) -> tuple[FrameResult, Coding, int]:
+        """Estimate the target in ``frame`` (Algorithm 2, steps 2.1-2.4; no template update);
+        ``particles`` as :meth:`advance`'s.
 
         Returns
         -------
@@ -153,8 +171,11 @@ class NRMLCTracker(OneCallAtATime):
             The row of ``coding`` that is the estimate.
         """
         p = self.params
-        states = self.sample_particles()
-        coding = self.encode(self.patches(frame, states))
+        if particles is None:
+            states = self.sample_particles()
+            particles = states, self.patches(frame, states)
+        states, candidates = particles
+        coding = self.encode(candidates)
         n_particles = len(states)
         best = int(np.argmax(coding.log_confidence))
         searched = redetect.needs_search(p, coding.error_positive[best])

@@ -21,6 +21,7 @@ import numpy as np
 from nrmlc.errors import ParameterError
 from nrmlc.geometry import box_iou, box_to_state
 from nrmlc.tracker.concurrency import OneCallAtATime
+from nrmlc.tracker.eyes import seen_by_each
 from nrmlc.tracker.parameter_fields import CheckedParams, bounded
 from nrmlc.tracker.records import FrameResult
 
@@ -273,8 +274,7 @@ class ExpertPair(OneCallAtATime):
     def update(self, image) -> np.ndarray:
         """Track ``image`` with both experts; returns the output box ``(x, y, w, h)``, 1-based."""
         with self._alone("update"):
-            for expert in self.experts:
-                expert.update(image)
+            self._advance_experts(image)
             results = [expert.last for expert in self.experts]
             errors = np.array([result.error_positive for result in results])
             scores = expert_scores(errors, np.array([result.error_negative for result in results]),
@@ -288,6 +288,18 @@ class ExpertPair(OneCallAtATime):
                 last = dataclasses.replace(last, box=box, state=box_to_state(box, self.params.patch_size))
             self.last = last
             return last.box
+
+
+    def _advance_experts(self, image) -> None:
+        """Both experts into the next frame, sharing what they can: the frame (prepared once:
+        the partner's parameters change nothing of its preparation, and both levelled by the same
+        first frame) and one pass of each seeing kernel over both experts' particles
+        (:func:`~nrmlc.tracker.eyes.seen_by_each`). Each expert's boxes are those it gives alone."""
+        frame = self.experts[0].prepared_frame(image)
+        states = [expert.sample_particles() for expert in self.experts]
+        seen = seen_by_each(frame, states, self.params.patch_size, [expert.params.eyes for expert in self.experts])
+        for expert, own_states, own_seen in zip(self.experts, states, seen):
+            expert.advance(frame, (own_states, own_seen))
 
 
 def make_tracker(params=None, seed: int = 0, **overrides):

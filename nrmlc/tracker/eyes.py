@@ -55,7 +55,36 @@ def seen(frame: np.ndarray, states: np.ndarray, patch_size: int, eyes: str) -> n
     """The vectors an expert with ``eyes`` codes for ``states`` (n, 6) in ``frame`` (height, width)
     float32: (n, d) float32 unit rows, d = ``patch_size**2`` ('gray') or ``(patch_size // 4)**2 * 9``
     ('gradient')."""
-    patches = warp_patches(frame, np.ascontiguousarray(state_to_affine(states)), patch_size)
-    if eyes == "gradient":
-        return gradient_cells(patches, patch_size)
-    return patches
+    return seen_by_each(frame, [states], patch_size, [eyes])[0]
+
+
+def seen_by_each(frame: np.ndarray, states: list, patch_size: int, eyes: list) -> list:
+    """:func:`seen` for several experts' particles in one frame, with one warp over all of them
+    and one gradient pass over those of every gradient expert: each particle's vector is the
+    same as alone (every kernel treats each particle on its own), and the kernels' threads meet
+    once per stage instead of once per expert.
+
+    Parameters
+    ----------
+    frame : (height, width) float32
+    states : list of (n_i, 6) float64
+        Each expert's particles.
+    patch_size : int
+    eyes : list of str
+        Each expert's eyes.
+
+    Returns
+    -------
+    list of (n_i, d_i) float32
+        What each expert codes.
+    """
+    bounds = np.cumsum([0] + [len(part) for part in states])
+    patches = warp_patches(frame, np.ascontiguousarray(state_to_affine(np.vstack(states))), patch_size)
+    seen_parts = [patches[bounds[i]:bounds[i + 1]] for i in range(len(states))]
+    gradient = [i for i, name in enumerate(eyes) if name == "gradient"]
+    if gradient:
+        cells = gradient_cells(np.vstack([seen_parts[i] for i in gradient]), patch_size)
+        cell_bounds = np.cumsum([0] + [len(seen_parts[i]) for i in gradient])
+        for j, i in enumerate(gradient):
+            seen_parts[i] = cells[cell_bounds[j]:cell_bounds[j + 1]]
+    return seen_parts
