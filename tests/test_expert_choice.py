@@ -85,7 +85,7 @@ def test_the_default_s_two_experts_run_alone_and_chosen_give_the_default(tmp_pat
     while each expert alone differs from them."""
     out = tmp_path / "choice.json"
     code = expert_choice.main(["--sequences", "", "--synthetic", "1", "--seeds", "0", "--max-frames", "40",
-                               "--own", "second_expert=off", "--partner", "second_expert=off,update_interval=1",
+                               "--own", "second_expert=off", "--partner", "second_expert=off,update_interval=1,eyes=gradient",
                                "--cache", str(tmp_path / "cache"), "--json", str(out), "--jobs", "1"])
     assert code == 0
     document = json.loads(out.read_text())
@@ -94,3 +94,14 @@ def test_the_default_s_two_experts_run_alone_and_chosen_give_the_default(tmp_pat
     assert list(rows) == ["partner alone", "own alone", choice]
     assert rows[choice]["per_seed"] == document["baseline_per_seed"]
     assert any(rows[name]["per_seed"] != document["baseline_per_seed"] for name in ("partner alone", "own alone"))
+
+
+def test_the_margin_does_not_change_with_an_expert_s_scale():
+    """The margin compares eps_pos* / (eps_pos* + eps_neg*): an expert whose errors are all ten
+    times larger scores the same; 1/2 where both errors are 0."""
+    errors, negatives = np.array([0.02, 0.3]), np.array([0.06, 0.5])
+    margins = expert_choice.expert_scores(errors, negatives, "margin")
+    np.testing.assert_allclose(margins, [0.25, 0.375])
+    np.testing.assert_allclose(expert_choice.expert_scores(errors * [1, 10], negatives * [1, 10], "margin"), margins)
+    assert expert_choice.expert_scores(np.zeros(2), np.zeros(2), "margin").tolist() == [0.5, 0.5]
+    assert expert_choice.expert_scores(errors, negatives, "error") is errors

@@ -17,6 +17,8 @@ from nrmlc.tracker.loop import track_sequence
 # test names the blend or the held size.
 SETTINGS = dict(n_particles=120, redetect_count=60, translation_floor=0.0, second_expert="off",
                 expert_blend_iou=1.0, unrecognised_size_share=0.0)
+#: What the default's second expert sees.
+PARTNER_EYES = TrackerParams().partner_eyes
 
 
 @pytest.fixture(scope="module")
@@ -34,7 +36,7 @@ def test_the_output_is_the_expert_with_the_lower_average_error(sequence, kind, m
     frame from their boxes by the running average of eps_pos*."""
     pair = _run(sequence, second_expert=kind, expert_memory=memory)
     own = _run(sequence)
-    partner = _run(sequence, update_interval=1)
+    partner = _run(sequence, update_interval=1, eyes=PARTNER_EYES)
     errors = np.stack([own.diagnostics["error_positive"], partner.diagnostics["error_positive"]], axis=1)
     average, chosen = np.zeros(2), [0]
     for row in errors[1:]:
@@ -64,7 +66,7 @@ def test_where_the_experts_agree_the_output_is_their_blend(sequence, min_iou):
     min_iou, the centre is the mean of theirs and the size their geometric mean, weighted by the
     other's eps_pos*; elsewhere the chosen one's box."""
     pair = _run(sequence, second_expert="every_frame", expert_blend_iou=min_iou)
-    own, partner = _run(sequence), _run(sequence, update_interval=1)
+    own, partner = _run(sequence), _run(sequence, update_interval=1, eyes=PARTNER_EYES)
     errors = np.stack([own.diagnostics["error_positive"], partner.diagnostics["error_positive"]], axis=1)
     chosen = _chosen(errors, 0.95)
     expected = np.where(chosen[:, None] == 1, partner.boxes, own.boxes)
@@ -104,7 +106,7 @@ def test_where_neither_expert_recognises_the_size_moves_toward_the_last_recognis
     output keeps the blend's (or the choice's) centre and its log size moves ``share`` of the way
     to that of the last output whose frame was recognised. The gate is set inside this
     short sequence's range of eps_pos* so that both kinds of frame occur."""
-    own, partner = _run(sequence), _run(sequence, update_interval=1)
+    own, partner = _run(sequence), _run(sequence, update_interval=1, eyes=PARTNER_EYES)
     errors = np.stack([own.diagnostics["error_positive"], partner.diagnostics["error_positive"]], axis=1)
     gate = float(np.median(errors[1:].min(axis=1)))
     pair = _run(sequence, second_expert="every_frame", expert_blend_iou=0.5, unrecognised_size_share=share,
@@ -172,7 +174,7 @@ def test_make_tracker_builds_one_expert_or_a_pair_and_the_partner_learns_every_f
     assert TrackerParams.paper().second_expert == "off" and TrackerParams.paper().unrecognised_size_share == 0
     params = TrackerParams(second_expert="every_frame")
     assert params.estimated_bytes() == 2 * TrackerParams(second_expert="off").estimated_bytes()
-    assert params.partner_params() == TrackerParams(update_interval=1, second_expert="off")
+    assert params.partner_params() == TrackerParams(update_interval=1, second_expert="off", eyes="gradient")
     assert pair.experts[1].params == pair.params.partner_params() and pair.experts[0].params == pair.params
     with pytest.raises(ParameterError, match="second_expert"):
         ExpertPair(seed=0, second_expert="off")
@@ -200,31 +202,18 @@ def test_bad_values_name_the_parameter(changes, name):
         TrackerParams(**changes)
 
 
-@pytest.mark.parametrize("eyes, choice", [("gradient", "margin"), ("gradient", "error")])
-def test_a_partner_with_other_eyes_is_its_single_run_chosen_offline(sequence, eyes, choice):
-    """The study's method (round 80): a pair whose partner sees otherwise is, to the bit, its two
-    experts run alone and chosen offline (experiments.development.expert_choice), whatever the
-    criterion."""
+@pytest.mark.parametrize("eyes", ["gradient", "gray"])
+def test_a_partner_with_other_eyes_is_its_single_run_chosen_offline(sequence, eyes):
+    """The study's method (rounds 80-81): a pair whose partner sees otherwise is, to the bit, its
+    two experts run alone and chosen offline (experiments.development.expert_choice), though the
+    pair warps both experts' particles in one pass."""
     from experiments.development.expert_choice import chosen_boxes
 
-    pair = _run(sequence, second_expert="every_frame", partner_eyes=eyes, expert_choice=choice, expert_memory=0.0,
+    pair = _run(sequence, second_expert="every_frame", partner_eyes=eyes, expert_memory=0.0,
                 expert_blend_iou=0.5, unrecognised_size_share=0.7)
     own = _run(sequence)
     partner = _run(sequence, update_interval=1, eyes=eyes)
-    boxes, chosen = chosen_boxes(own, partner, 0.0, 0.5, 0.7, 0.15, choice)
+    boxes, chosen = chosen_boxes(own, partner, 0.0, 0.5, 0.7, 0.15)
     assert chosen[1:].sum() > 0 and not np.array_equal(own.boxes, partner.boxes)
     np.testing.assert_array_equal(pair.boxes, boxes)
     np.testing.assert_array_equal(pair.diagnostics["expert"][1:], chosen[1:])
-
-
-def test_the_margin_does_not_change_with_an_expert_s_scale():
-    """The margin compares eps_pos* / (eps_pos* + eps_neg*): an expert whose errors are all ten
-    times larger scores the same; 1/2 where both errors are 0."""
-    from nrmlc.tracker.experts import expert_scores
-
-    errors, negatives = np.array([0.02, 0.3]), np.array([0.06, 0.5])
-    margins = expert_scores(errors, negatives, "margin")
-    np.testing.assert_allclose(margins, [0.25, 0.375])
-    np.testing.assert_allclose(expert_scores(errors * [1, 10], negatives * [1, 10], "margin"), margins)
-    assert expert_scores(np.zeros(2), np.zeros(2), "margin").tolist() == [0.5, 0.5]
-    assert expert_scores(errors, negatives, "error") is errors

@@ -282,7 +282,7 @@ def test_full_positive_set_replaces_the_closest(sequence):
                                   "scale_prior", "illumination_window", "features", "gray_weight",
                                   "held_scale_prior", "held_scale_prior_side", "hold_scale_lost_frames",
                                   "shrunk_negatives", "grown_negatives", "negative_refresh", "positive_batch",
-                                  "patch_blocks"])
+                                  "patch_blocks", "expert_choice"])
 def test_fields_measured_and_not_adopted_are_refused_with_a_pointer(name):
     from nrmlc.tracker.params import REMOVED_PARAMETERS, parse_param_assignment
 

@@ -47,9 +47,36 @@ from experiments.development.screen import (_report, add_run_options, add_target
 from nrmlc.errors import NrmlcError
 from nrmlc.workbench.run_cache import RunCache
 from nrmlc.geometry import box_to_state
-from nrmlc.tracker.experts import choose_expert, expert_scores, experts_output
+from nrmlc.tracker.experts import choose_expert, experts_output
 from nrmlc.tracker.loop import TrackResult
 from nrmlc.tracker.params import TrackerParams
+
+
+#: What the choice can compare: 'error' is the tracker's (:func:`nrmlc.tracker.experts.choose_expert`).
+CHOICES = ("error", "margin")
+
+
+def expert_scores(errors: np.ndarray, negative_errors: np.ndarray, choice: str) -> np.ndarray:
+    """What the choice compares of the two runs on one frame (lower is better).
+
+    Parameters
+    ----------
+    errors, negative_errors : (2,) float64
+        Each run's eps_pos* and eps_neg* of its estimate.
+    choice : {'error', 'margin'}
+
+    Returns
+    -------
+    scores : (2,) float64
+        ``errors`` for 'error' (the tracker's choice); for 'margin' ``errors / (errors +
+        negative_errors)``, in [0, 1], which no scale of a run's feature space changes (1/2 where
+        both are 0). The margin was measured against the error and not adopted
+        (docs/research/rounds/round-81-error-or-margin-on-fresh-seeds.md).
+    """
+    if choice == "error":
+        return errors
+    total = errors + negative_errors
+    return np.where(total > 0, errors / np.where(total > 0, total, 1.0), 0.5)
 
 
 def chosen_boxes(own: TrackResult, partner: TrackResult, memory: float, blend_iou: float = 1.0,
@@ -70,9 +97,8 @@ def chosen_boxes(own: TrackResult, partner: TrackResult, memory: float, blend_io
         of the way to the last recognised output's (``unrecognised_size_share`` and
         ``unrecognised_gate``; a share of 0, the default here: never).
     choice : {'error', 'margin'}
-        What the choice and the blend compare (``expert_choice``,
-        :func:`nrmlc.tracker.experts.expert_scores`; the margin also reads
-        ``diagnostics["error_negative"]``).
+        What the choice and the blend compare (:func:`expert_scores`: the tracker's 'error', or
+        the margin measured beside it; the margin also reads ``diagnostics["error_negative"]``).
 
     Returns
     -------
@@ -138,9 +164,9 @@ def main(argv=None) -> int:
     parser.add_argument("--unrecognised-gate", type=float, default=TrackerParams().unrecognised_gate,
                         help="the eps_pos* at or above which a run does not recognise the target (default: the "
                              "default's unrecognised_gate)")
-    parser.add_argument("--choice", choices=TrackerParams.choices("expert_choice"),
-                        default=TrackerParams().expert_choice,
-                        help="what the choice and the blend compare (expert_choice; default: the default's)")
+    parser.add_argument("--choice", choices=CHOICES, default=CHOICES[0],
+                        help="what the choice and the blend compare: each run's eps_pos* (the tracker's choice) "
+                             "or its margin eps_pos* / (eps_pos* + eps_neg*) (expert_scores)")
     add_run_options(parser)
     args = parser.parse_args(argv)
     try:

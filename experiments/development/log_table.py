@@ -49,11 +49,9 @@ ADOPTED = {
     (64, "learner2"),
     (76, "experts that agree report their blend (offline, exact)"),
     (77, "the size last recognised while neither expert recognises (offline, exact)"),
+    (80, "gradient partner, by error (offline, exact)"),
+    (81, "gradient partner, by error (offline, exact)"),
 }
-
-#: Variants that passed and become the default with the next real-data grid, which regenerates
-#: every figure and table at once (the round file says so).
-TO_BE_ADOPTED = {(80, "gradient partner, by error (offline, exact)")}
 
 #: Rounds with a round file and no committed JSON: their verdict, from the round files
 #: (rounds 1-16 were screened on the 12 first targets before runs were saved as JSON).
@@ -154,8 +152,7 @@ def rows() -> list[tuple]:
         if number is None:
             continue
         for index, (name, seeds, differences, rule) in enumerate(studies(path)):
-            verdict = ("adopted" if (number, name) in ADOPTED else
-                       "to be adopted" if (number, name) in TO_BE_ADOPTED else "not adopted")
+            verdict = "adopted" if (number, name) in ADOPTED else "not adopted"
             found.append((number, min(seeds), len(seeds), path.name, index, name, seeds, differences, rule, verdict))
     found.sort(key=lambda row: row[:5])
     return found

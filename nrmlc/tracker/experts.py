@@ -1,10 +1,11 @@
 """The pair of experts (*ours*; ``second_expert = 'off'`` is the paper): two NRMLC trackers track
 every frame apart, and the pair reports one box.
 
-The second expert has the same parameters and seed but a template update every frame and, with
-``partner_eyes``, eyes of its own (:mod:`nrmlc.tracker.eyes`; :meth:`ExpertParams.partner_params`),
-so the two fail on different frames. Each frame's output is the estimate of the expert whose
-recent eps_pos* (an exponential average; or its margin, ``expert_choice``) is lower; where
+The second expert has the same parameters and seed but a template update every frame and eyes
+of its own (``partner_eyes``: gradient cells, :mod:`nrmlc.tracker.eyes`;
+:meth:`ExpertParams.partner_params`), so the two fail on different frames. Each frame's output is
+the estimate of the expert whose recent eps_pos* (an exponential average, in the gray patch's
+units) is lower; where
 their boxes agree, their blend; on a frame neither recognises, the output's size moves toward the
 last recognised output's. Each expert goes on from its own estimate: the choice, the blend and the
 held size change only what is reported. Evidence: docs/DEVIATIONS.md.
@@ -35,12 +36,9 @@ class ExpertParams(CheckedParams):
     second_expert : {'every_frame', 'off'}
         'every_frame': a second expert that updates its templates every frame; 'off': one tracker
         (the paper).
-    partner_eyes : {'gray', 'gradient'}
-        What the second expert sees (:mod:`nrmlc.tracker.eyes`).
-    expert_choice : {'error', 'margin'}
-        What the choice and the blend compare: 'error', each expert's eps_pos* (in the gray
-        patch's units); 'margin', its eps_pos* / (eps_pos* + eps_neg*), which no scale of an
-        expert's space changes (:func:`expert_scores`).
+    partner_eyes : {'gradient', 'gray'}
+        What the second expert sees (:mod:`nrmlc.tracker.eyes`): 'gradient', gradient-orientation
+        cells; 'gray', the gray patch, as the first expert.
     expert_memory : float
         The weight of the past in each expert's average eps_pos* (0.95: about 20 frames).
     expert_blend_iou : float
@@ -56,8 +54,7 @@ class ExpertParams(CheckedParams):
     """
 
     second_expert: Literal["every_frame", "off"] = "every_frame"
-    partner_eyes: Literal["gray", "gradient"] = "gray"
-    expert_choice: Literal["error", "margin"] = "error"
+    partner_eyes: Literal["gradient", "gray"] = "gradient"
     expert_memory: float = bounded(0.95, 0, 1, high_open=True)
     expert_blend_iou: float = bounded(0.5, 0, 1)
     unrecognised_size_share: float = bounded(0.7, 0, 1)
@@ -68,28 +65,6 @@ class ExpertParams(CheckedParams):
         return self.replace(second_expert="off", update_interval=1, eyes=self.partner_eyes)
 
 
-def expert_scores(errors: np.ndarray, negative_errors: np.ndarray, choice: str) -> np.ndarray:
-    """What the pair compares of its experts on one frame (lower is better).
-
-    Parameters
-    ----------
-    errors, negative_errors : (n_experts,) float64
-        Each expert's eps_pos* and eps_neg* of its estimate.
-    choice : {'error', 'margin'}
-        ``expert_choice``.
-
-    Returns
-    -------
-    scores : (n_experts,) float64
-        ``errors`` for 'error'; for 'margin' ``errors / (errors + negative_errors)``, in [0, 1]
-        (1/2 where both are 0: the expert tells the target from nothing).
-    """
-    if choice == "error":
-        return errors
-    total = errors + negative_errors
-    return np.where(total > 0, errors / np.where(total > 0, total, 1.0), 0.5)
-
-
 def choose_expert(average: np.ndarray, errors: np.ndarray, memory: float) -> tuple[np.ndarray, int]:
     """One frame of the pair's choice.
 
@@ -98,8 +73,7 @@ def choose_expert(average: np.ndarray, errors: np.ndarray, memory: float) -> tup
     average : (2,) float64
         Each expert's running average of its score (first, second) before this frame; 0 at the first.
     errors : (2,) float64
-        This frame's score of each expert's estimate (:func:`expert_scores`: its eps_pos*, or
-        its margin).
+        This frame's eps_pos* of each expert's estimate.
     memory : float
         The weight of the past (``expert_memory``), in [0, 1).
 
@@ -184,7 +158,7 @@ def experts_output(boxes: np.ndarray, errors: np.ndarray, chosen: int, recognise
         log(w), log(h) of the last output whose frame an expert recognised.
     params : ExpertParams
     scores : (2,) float64, optional
-        What the blend weighs the experts by (:func:`expert_scores`; default ``errors``).
+        What the blend weighs the experts by (default ``errors``).
 
     Returns
     -------
@@ -246,7 +220,7 @@ class ExpertPair(OneCallAtATime):
         self.params = first.params
         self.seed = first.seed
         self.experts = (first, expert_class(seed, self.params.partner_params()))
-        self.average_scores = np.zeros(2)
+        self.average_errors = np.zeros(2)
         self.recognised_log_size: np.ndarray | None = None
         self.last: FrameResult | None = None
 
@@ -267,7 +241,7 @@ class ExpertPair(OneCallAtATime):
             with warnings.catch_warnings():  # the same frame and box: the first expert has said it all
                 warnings.simplefilter("ignore")
                 second.init(image, box)
-            self.average_scores = np.zeros(2)
+            self.average_errors = np.zeros(2)
             self.recognised_log_size = np.log(np.asarray(box, dtype=np.float64)[2:])
             self.last = None
 
@@ -277,13 +251,10 @@ class ExpertPair(OneCallAtATime):
             self._advance_experts(image)
             results = [expert.last for expert in self.experts]
             errors = np.array([result.error_positive for result in results])
-            scores = expert_scores(errors, np.array([result.error_negative for result in results]),
-                                   self.params.expert_choice)
-            self.average_scores, chosen = choose_expert(self.average_scores, scores, self.params.expert_memory)
+            self.average_errors, chosen = choose_expert(self.average_errors, errors, self.params.expert_memory)
             last = results[0] if chosen == 0 else dataclasses.replace(results[1], expert=1)
             box, self.recognised_log_size, moved = experts_output(
-                np.stack([result.box for result in results]), errors, chosen, self.recognised_log_size, self.params,
-                scores)
+                np.stack([result.box for result in results]), errors, chosen, self.recognised_log_size, self.params)
             if moved:
                 last = dataclasses.replace(last, box=box, state=box_to_state(box, self.params.patch_size))
             self.last = last

@@ -201,7 +201,7 @@ STAGE_ORDER: tuple[str, ...] = (
     "redetect_weak_accept",
     "generative_weight", "generative_candidates", "generative_neighbours", "generative_lam", "generative_interval",
     "generative_step",
-    "second_expert", "partner_eyes", "expert_choice", "expert_memory", "expert_blend_iou", "unrecognised_size_share",
+    "second_expert", "partner_eyes", "expert_memory", "expert_blend_iou", "unrecognised_size_share",
     "unrecognised_gate",
 )
 
