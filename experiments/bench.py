@@ -64,6 +64,8 @@ REFERENCE_SUBSET = {"regularized": 120, "plain": 60, "constrained": 12}
 MODES = ("regularized", "constrained", "plain")
 #: Switches whose cost the end-to-end bench measures by flipping them (bench_end_to_end).
 FLIPPED_SWITCHES = ("generative_weight", "second_expert", "partner_eyes")
+#: The end-to-end row of the default's second expert run alone (its :meth:`partner_params`).
+PARTNER_ALONE = "NRMLC partner alone"
 #: Frames of Car4 for the end-to-end and thread rows; the project's speed target there.
 REAL_FRAMES = 300
 TARGET_FPS = 150.0
@@ -589,6 +591,8 @@ def bench_end_to_end(sequence, n_frames: int | None, rounds: int) -> list[dict]:
     if default.second_expert != "off":
         eyes = "gradient" if default.partner_eyes == "gray" else "gray"
         variants[f"NRMLC partner_eyes={eyes}"] = default.replace(partner_eyes=eyes)
+        # The pair against its experts run one after the other: the partner alone.
+        variants[PARTNER_ALONE] = default.partner_params()
     samples = {name: [] for name in variants}
     samples["OpenCV TrackerMIL"] = []
     from nrmlc.lineage import TRACKERS
@@ -823,6 +827,7 @@ def _summary(result: dict) -> list[str]:
             if other_sequence == sequence and any(f"{switch}=" in other_tracker for switch in FLIPPED_SWITCHES):
                 lines.append(f"{sequence}: " + compare(other_tracker.split()[-1], other["fps_tracking"],
                                                        "the default", fps) + ".")
+        lines += _pair_cost_line(by_name, sequence, fps)
     threads = result.get("threads") or []
     if threads:
         reference = threads[0]
@@ -840,6 +845,19 @@ def _summary(result: dict) -> list[str]:
         lines.append(f"Smallest kernel speed-up against its test oracle at N=600: {slowest['speedup']:.0f}x "
                      f"({slowest['kernel']}).")
     return lines
+
+
+def _pair_cost_line(by_name: dict, sequence: str, fps: float) -> list[str]:
+    """The default's pair against its two experts run one after the other, in ms per frame: what
+    sharing the frame and the seeing kernels saves (empty without the rows)."""
+    first = by_name.get((sequence, "NRMLC second_expert=off"))
+    partner = by_name.get((sequence, PARTNER_ALONE))
+    if not first or not partner:
+        return []
+    pair_ms, first_ms, partner_ms = 1e3 / fps, 1e3 / first["fps_tracking"], 1e3 / partner["fps_tracking"]
+    return [f"{sequence}: the pair takes {pair_ms:.1f} ms per frame; its experts alone {first_ms:.1f} (the first, "
+            f"second_expert=off) + {partner_ms:.1f} (the partner) = {first_ms + partner_ms:.1f} ms: the partner adds "
+            f"{pair_ms - first_ms:.1f} ms to the first expert, against {partner_ms:.1f} ms alone."]
 
 
 def _reported_matlab_lines(result: dict) -> list[str]:

@@ -85,6 +85,7 @@ def test_quick_bench_writes_json_and_markdown(tmp_path):
     summary = "\n".join(data["summary"])
     assert "constrained is" in summary and "(default parameters" in summary
     assert "second_expert=off is" in summary  # one tracker against the default's pair
+    assert bench.PARTNER_ALONE in trackers and "the partner adds" in summary  # the pair against its experts alone
     assert "slower by" not in markdown and "faster by" not in markdown
 
 
@@ -116,3 +117,14 @@ def test_bench_sets_the_lineage_beside_the_papers_matlab_fps():
     assert "LSK 6.57 fps (no live run)" in line and "L1 0.28 fps (no live run)" in line
     assert "MIL" not in line and "KCF" not in line
     assert bench._reported_matlab_lines({"end_to_end": rows[1:]}) == []
+
+
+def test_the_pair_s_cost_is_set_against_its_experts_run_alone():
+    from experiments.bench import PARTNER_ALONE, _pair_cost_line
+
+    rows = {("Car4", "NRMLC second_expert=off"): {"fps_tracking": 100.0},
+            ("Car4", PARTNER_ALONE): {"fps_tracking": 200.0}}
+    line = _pair_cost_line(rows, "Car4", 80.0)[0]
+    assert "takes 12.5 ms" in line and "10.0 (the first" in line and "+ 5.0 (the partner) = 15.0 ms" in line
+    assert "adds 2.5 ms to the first expert, against 5.0 ms alone" in line
+    assert _pair_cost_line({}, "Car4", 80.0) == []
