@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 
 from experiments.lineage import fidelity, versus
+from nrmlc.errors import NrmlcError
 from nrmlc.data import open_sequence, synthetic_suite, write_otb_sequence
 from nrmlc.testing.otb_files import _save
 from nrmlc.workbench.metrics import evaluate
@@ -64,6 +65,24 @@ def test_versus_runs_every_tracker_and_writes_the_table(data_root, tmp_path):
     stored = json.loads((tmp_path / "out" / "lineage_versus.json").read_text())
     assert stored["seeds"] == [0, 1] and stored["per_seed"]["ASLA"] == columns["ASLA"]
     assert (tmp_path / "out" / "lineage_versus.png").stat().st_size > 0
+
+
+def test_versus_takes_the_lineage_from_an_earlier_table(data_root, tmp_path):
+    """--lineage-from: the lineage's columns as an earlier run stored them, NRMLC's run again; a
+    table at other seeds or without a target is refused in one line."""
+    groups = {"A": ("Walker",), "B": ("Runner",)}
+    first = versus.run([data_root], tmp_path / "first", seeds=(0,), groups=groups, cache=tmp_path / "cache", jobs=1,
+                       max_frames=6)
+    stored = tmp_path / "first" / "lineage_versus.json"
+    again = versus.run([data_root], tmp_path / "again", seeds=(0,), groups=groups, cache=tmp_path / "empty", jobs=1,
+                       max_frames=6, lineage_from=stored)
+    assert again["columns"] == first["columns"]
+    assert not list((tmp_path / "empty").rglob("imported/*"))  # no lineage run was made
+    with pytest.raises(NrmlcError, match="seeds"):
+        versus.run([data_root], tmp_path / "x", seeds=(1,), groups=groups, cache=tmp_path / "cache", jobs=1,
+                   max_frames=6, lineage_from=stored)
+    with pytest.raises(NrmlcError, match="no runs of IVT on Jumper"):
+        versus.lineage_columns_from(stored, ["Walker", "Jumper"], (0,), 6)
 
 
 def test_versus_names_a_missing_target_in_one_line(data_root, tmp_path, capsys):

@@ -23,6 +23,7 @@ Writes ``<out>/lineage_versus.csv`` (one row per target: each tracker's mean ove
 from __future__ import annotations
 
 import argparse
+import json
 import math
 import sys
 from pathlib import Path
@@ -55,6 +56,26 @@ def lineage_overlaps(cache: RunCache, short_name: str, sequences, seeds, max_fra
     results = iter(cache.run(jobs_of, jobs=jobs))
     return {sequence.name: [float(score(next(results).boxes, sequence, max_frames).mean_overlap) for _ in seeds]
             for sequence in sequences}
+
+
+def lineage_columns_from(path, names, seeds, max_frames) -> dict:
+    """{lineage tracker: {target: [mean overlap of each seed]}} from an earlier ``lineage_versus.json``
+    written at the same seeds and frame cap, for the targets ``names``; a one-line error where it
+    does not hold them."""
+    path = Path(path)
+    try:
+        stored = json.loads(path.read_text(encoding="utf-8"))
+        per_seed = stored["per_seed"]
+    except (OSError, ValueError, KeyError, TypeError) as error:
+        raise NrmlcError(f"--lineage-from {path}: not a lineage_versus.json ({error})") from None
+    if stored.get("seeds") != list(seeds) or stored.get("max_frames") != max_frames:
+        raise NrmlcError(f"--lineage-from {path}: seeds {stored.get('seeds')} and frame cap {stored.get('max_frames')}, "
+                         f"not {list(seeds)} and {max_frames}")
+    missing = [f"{label} on {name}" for label in LINEAGE for name in names if name not in per_seed.get(label, {})]
+    if missing:
+        raise NrmlcError(f"--lineage-from {path}: no runs of {', '.join(missing[:3])}"
+                         + (f" and {len(missing) - 3} more" if len(missing) > 3 else ""))
+    return {label: {name: per_seed[label][name] for name in names} for label in LINEAGE}
 
 
 def compare(ours: dict, theirs: dict, names) -> dict:
@@ -90,7 +111,8 @@ def verdict(difference: dict) -> str:
     return "level (within two standard errors)"
 
 
-def run(roots, out, seeds=(0, 1, 2, 3, 4), groups=None, cache=None, jobs=None, max_frames=None) -> dict:
+def run(roots, out, seeds=(0, 1, 2, 3, 4), groups=None, cache=None, jobs=None, max_frames=None,
+        lineage_from=None) -> dict:
     """Run (or read from the cache) every tracker on every target of ``groups`` and write the table.
 
     Parameters
@@ -101,6 +123,9 @@ def run(roots, out, seeds=(0, 1, 2, 3, 4), groups=None, cache=None, jobs=None, m
         Group name -> target names (default :data:`GROUPS`).
     max_frames : int, optional
         Track only the first frames (for quick checks).
+    lineage_from : path, optional
+        An earlier ``lineage_versus.json`` whose lineage columns are taken as they are, not run
+        (:func:`lineage_columns_from`): NRMLC's code does not move the lineage's runs.
     """
     groups = groups or GROUPS
     names = list(dict.fromkeys(n for members in groups.values() for n in members))
@@ -110,8 +135,11 @@ def run(roots, out, seeds=(0, 1, 2, 3, 4), groups=None, cache=None, jobs=None, m
     for label, preset in NRMLC_CONFIGURATIONS.items():
         measures = configuration_runs(cache, TrackerParams.preset(preset), sequences, seeds, max_frames, jobs)
         columns[label] = overlaps_of(measures)
-    for label, short_name in LINEAGE.items():
-        columns[label] = lineage_overlaps(cache, short_name, sequences, seeds, max_frames, jobs)
+    if lineage_from is not None:
+        columns.update(lineage_columns_from(lineage_from, names, seeds, max_frames))
+    else:
+        for label, short_name in LINEAGE.items():
+            columns[label] = lineage_overlaps(cache, short_name, sequences, seeds, max_frames, jobs)
     summary = {}
     for group, members in groups.items():
         summary[group] = {"n": len(members), "means": {c: float(np.mean([np.mean(v[n]) for n in members]))
@@ -157,9 +185,13 @@ def main(argv=None) -> int:
     parser.add_argument("--seeds", default="0-4", help="seeds of every tracker (default 0-4)")
     parser.add_argument("--cache", help="run cache (default .cache/runs)")
     parser.add_argument("--jobs", type=int, help="worker processes (default: the cores)")
+    parser.add_argument("--lineage-from", metavar="JSON",
+                        help="take the lineage's columns from an earlier lineage_versus.json at the same seeds "
+                             "instead of running them (NRMLC's code does not move them)")
     args = parser.parse_args(argv)
     try:
-        result = run(parse_roots(args.data), args.out, parse_seeds(args.seeds), cache=args.cache, jobs=args.jobs)
+        result = run(parse_roots(args.data), args.out, parse_seeds(args.seeds), cache=args.cache, jobs=args.jobs,
+                     lineage_from=args.lineage_from)
     except NrmlcError as error:
         print(f"error: {error}", file=sys.stderr)
         return 2
