@@ -71,7 +71,7 @@ def choose_expert(average: np.ndarray, errors: np.ndarray, memory: float) -> tup
     Parameters
     ----------
     average : (2,) float64
-        Each expert's running average of its score (first, second) before this frame; 0 at the first.
+        Each expert's running average of eps_pos* (first, second) before this frame; 0 at the first.
     errors : (2,) float64
         This frame's eps_pos* of each expert's estimate.
     memory : float
@@ -259,7 +259,6 @@ class ExpertPair(OneCallAtATime):
                 last = dataclasses.replace(last, box=box, state=box_to_state(box, self.params.patch_size))
             self.last = last
             return last.box
-
 
     def _advance_experts(self, image) -> None:
         """Both experts into the next frame, sharing what they can: the frame (prepared once:
