@@ -230,6 +230,7 @@ def machine_info() -> dict:
 #: templates are updated count as the template update.
 STAGES = {
     "warp_patches": "warp (particles)",
+    "gradient_cells": "gradient cells (a gradient expert's eyes)",
     "candidate_template_dots": "product (sgemm)",
     "squared_norms": "squared norms",
     "nearest_templates": "nearest templates",

@@ -9,7 +9,7 @@ import pytest
 from nrmlc import TrackerParams
 from nrmlc.data.image import as_gray_frame
 from nrmlc.errors import ParameterError
-from nrmlc.kernels.gradient_cells import gradient_cells
+from nrmlc.kernels.gradient_cells import ORIENTATION_ERROR, gradient_cells, unsigned_orientation
 from nrmlc.tracker.algorithm import NRMLCTracker
 from nrmlc.tracker.eyes import ERROR_SCALE
 
@@ -49,6 +49,30 @@ def test_gradient_cells_match_the_reference(side, cell, bins):
     expected = np.stack([reference_gradient_cells(p, side, cell, bins) for p in patches])
     np.testing.assert_allclose(features, expected, atol=2e-6)
     np.testing.assert_allclose(np.linalg.norm(features, axis=1), 1, atol=1e-6)
+
+
+def test_gradient_cells_do_not_depend_on_the_thread_count():
+    import numba
+
+    patches = np.random.default_rng(2).random((37, 32 * 32)).astype(np.float32)
+    before = numba.get_num_threads()
+    try:
+        numba.set_num_threads(1)
+        alone = gradient_cells(patches, 32)
+    finally:
+        numba.set_num_threads(before)
+    np.testing.assert_array_equal(gradient_cells(patches, 32), alone)
+
+
+def test_unsigned_orientation_is_atan2_modulo_pi():
+    rng = np.random.default_rng(1)
+    gradients = rng.normal(size=(20_000, 2)) * rng.choice([1e-6, 1.0, 1e3], size=(20_000, 1))
+    axes = [(1, 0), (-1, 0), (0, 1), (0, -1), (1, 1), (-1, 1), (1, -1), (-1, -1), (0, -0.0), (-2, -0.0), (1, 1e-300)]
+    for gx, gy in np.vstack([gradients, axes]):
+        orientation = unsigned_orientation(gx, gy)
+        assert 0 <= orientation <= math.pi
+        distance = abs(orientation - math.atan2(gy, gx) % math.pi)
+        assert min(distance, math.pi - distance) <= ORIENTATION_ERROR, (gx, gy)
 
 
 def test_gradient_cells_ignore_the_patch_s_level_and_gain():
