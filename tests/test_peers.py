@@ -50,3 +50,16 @@ def test_opencv_ipp_avx2_holds_ipp_at_its_avx2_path():
     held = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True,
                           env={**os.environ, "OPENCV_IPP": "avx2"}).stdout
     assert "AVX2 (l9)" in held
+
+
+def test_each_lineage_tracker_runs_its_seeds_and_mtt_only_its_first():
+    from types import SimpleNamespace
+
+    from experiments import peers
+
+    context = SimpleNamespace(seeds=[3, 4, 5], max_frames=5)
+    sequence = synthetic_suite(n_frames=6, n_sequences=1)[0]
+    assert peers.lineage_seeds("ivt", context) == [3, 4, 5] and peers.lineage_seeds("mtt", context) == [3]
+    specs = peers.lineage_specs(context, [sequence])
+    assert len(specs) == 3 * (len(peers.LINEAGE_LIVE) - 1) + 1
+    assert [spec.seed for spec in specs if "mtt" in repr(spec).lower()] == [3]

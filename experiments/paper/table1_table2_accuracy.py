@@ -6,7 +6,8 @@ run per seed (mean ± std over ``context.seeds``). Beside it:
 - the paper's own NRMLC column ("Ours (paper)");
 - the OpenCV trackers run live on the same frames (:mod:`experiments.peers`);
 - the paper's lineage run live on the same frames, one run per seed as NRMLC ("IVT (live)",
-  "ASLA (live)", "L1 (live)", "L1APG (live)": :data:`experiments.peers.LINEAGE_LIVE`);
+  "ASLA (live)", "L1 (live)", "L1APG (live)", "MTT (live)": :data:`experiments.peers.LINEAGE_LIVE`;
+  MTT on the first seed only, :data:`experiments.peers.LINEAGE_SEED_LIMIT`);
 - the paper's eight peers: scored from the shipped per-frame results where
   they fit our frames, otherwise the paper's printed number, marked with a
   dagger (†).
@@ -376,8 +377,11 @@ def report(context, data: dict) -> dict:
     lineage = ", ".join(peers.lineage_label(n) for n in peers.LINEAGE_LIVE)
     text.append(f"{lineage}: the paper's lineage run live here as the OTB benchmark's MATLAB runs it "
                 "(`nrmlc/lineage/`; how close to the benchmark's own files: docs/research/lineage-fidelity.md), "
-                f"mean ± std over seeds {data['seeds']} as ours; the columns without '(live)' are the shipped "
-                "files or the paper's numbers.")
+                f"mean ± std over seeds {data['seeds']} as ours"
+                + "".join(f" ({peers.lineage_label(name)}: its first {limit} seed{'s' if limit > 1 else ''} only, "
+                          "for its cost)" for name, limit in peers.LINEAGE_SEED_LIMIT.items()
+                          if limit < len(data["seeds"]))
+                + "; the columns without '(live)' are the shipped files or the paper's numbers.")
     text.append("")
     text.append(markdown_table(data, "cle", 1, "Table I: centre location error (px, lower is better)", False))
     text.append("")
